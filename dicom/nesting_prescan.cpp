@@ -1,0 +1,229 @@
+#include "dicom/nesting_prescan.h"
+
+#include <zlib.h>
+
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <string_view>
+#include <algorithm>
+#include <vector>
+
+namespace typemerge::dicom {
+namespace {
+
+constexpr std::uint32_t kUndefinedLength = 0xFFFFFFFFu;
+constexpr std::size_t kMaxInflatedBytes = std::size_t{64} << 20;  // bounds a deflate bomb
+
+// The walk reads from a byte buffer: the file's header part, or the inflated data set.
+class ByteReader {
+ public:
+  explicit ByteReader(std::vector<unsigned char> bytes) : bytes_(std::move(bytes)) {}
+  std::size_t pos() const { return pos_; }
+  std::size_t size() const { return bytes_.size(); }
+  bool has(std::size_t n) const { return pos_ <= bytes_.size() && bytes_.size() - pos_ >= n; }
+  void skip(std::size_t n) { pos_ = has(n) ? pos_ + n : bytes_.size(); }
+  void seek(std::size_t at) { pos_ = std::min(at, bytes_.size()); }
+  std::uint16_t u16(bool big_endian) {
+    const unsigned a = bytes_[pos_], b = bytes_[pos_ + 1];
+    pos_ += 2;
+    return static_cast<std::uint16_t>(big_endian ? (a << 8 | b) : (b << 8 | a));
+  }
+  std::uint32_t u32(bool big_endian) {
+    const std::uint32_t lo = u16(big_endian), hi = u16(big_endian);
+    return big_endian ? (lo << 16 | hi) : (hi << 16 | lo);
+  }
+  std::string_view chars(std::size_t at, std::size_t n) const {
+    return {reinterpret_cast<const char*>(bytes_.data() + at), n};
+  }
+  const std::vector<unsigned char>& bytes() const { return bytes_; }
+
+ private:
+  std::vector<unsigned char> bytes_;
+  std::size_t pos_ = 0;
+};
+
+bool is_long_vr(std::string_view vr) {
+  static constexpr std::array<std::string_view, 13> kLong = {"OB", "OW", "OF", "OD", "OL", "OV",
+                                                             "SQ", "UT", "UN", "UC", "UR", "SV",
+                                                             "UV"};
+  for (auto v : kLong) {
+    if (v == vr) return true;
+  }
+  return false;
+}
+
+bool looks_like_vr(std::string_view vr) {
+  return vr.size() == 2 && vr[0] >= 'A' && vr[0] <= 'Z' && vr[1] >= 'A' && vr[1] <= 'Z';
+}
+
+struct Encoding {
+  bool explicit_vr = true;
+  bool big_endian = false;
+};
+
+// Walks elements from the reader's position to its end (or the pixel data). Containers with
+// a defined length close when the position passes their end; undefined ones at delimiters.
+int walk(ByteReader& in, Encoding enc, int max_depth, std::string& error) {
+  std::vector<std::size_t> open_ends;  // end offset of each open container (npos: undefined)
+  int deepest = 0;
+  auto close_finished = [&] {
+    while (!open_ends.empty() && open_ends.back() != std::string::npos &&
+           in.pos() >= open_ends.back()) {
+      open_ends.pop_back();
+    }
+  };
+  while (in.has(8)) {
+    close_finished();
+    const std::uint16_t group = in.u16(enc.big_endian);
+    const std::uint16_t element = in.u16(enc.big_endian);
+    if (group == 0xFFFE) {  // item, item delimiter, sequence delimiter: always 4-byte length
+      const std::uint32_t length = in.u32(enc.big_endian);
+      if (element == 0xE000) {
+        open_ends.push_back(length == kUndefinedLength ? std::string::npos : in.pos() + length);
+      } else if (!open_ends.empty()) {
+        open_ends.pop_back();  // E00D closes the item, E0DD the sequence
+      }
+    } else {
+      std::uint32_t length = 0;
+      bool sequence = false;
+      if (enc.explicit_vr && looks_like_vr(in.chars(in.pos(), 2))) {
+        const std::string_view vr = in.chars(in.pos(), 2);
+        sequence = vr == "SQ";
+        in.skip(2);
+        if (is_long_vr(vr)) {
+          in.skip(2);
+          if (!in.has(4)) break;
+          length = in.u32(enc.big_endian);
+        } else {
+          length = in.u16(enc.big_endian);
+        }
+      } else {
+        length = in.u32(enc.big_endian);
+      }
+      if (group == 0x7FE0 && element == 0x0010 && open_ends.empty()) break;  // pixel data
+      // Undefined length means a sequence (or UN-encoded one); an implicit-VR element of
+      // defined length is a sequence when its value starts with an item tag.
+      if (!sequence && length != kUndefinedLength && in.has(4)) {
+        const auto& b = in.bytes();
+        const std::size_t p = in.pos();
+        sequence = enc.big_endian ? (b[p] == 0xFF && b[p + 1] == 0xFE && b[p + 2] == 0xE0 &&
+                                     b[p + 3] == 0x00)
+                                  : (b[p] == 0xFE && b[p + 1] == 0xFF && b[p + 2] == 0x00 &&
+                                     b[p + 3] == 0xE0);
+      }
+      if (length == kUndefinedLength || sequence) {
+        open_ends.push_back(length == kUndefinedLength ? std::string::npos : in.pos() + length);
+      } else {
+        in.skip(length);
+      }
+    }
+    deepest = std::max(deepest, static_cast<int>(open_ends.size()));
+    if (deepest > 2 * max_depth) {  // a sequence and its item are two levels
+      error = "sequences nested more than " + std::to_string(max_depth) + " levels deep";
+      return deepest / 2;
+    }
+  }
+  return deepest / 2;
+}
+
+std::vector<unsigned char> read_head(const std::filesystem::path& file, std::string& error) {
+  std::ifstream stream(file, std::ios::binary);
+  if (!stream) {
+    error = "cannot open";
+    return {};
+  }
+  // Headers, even with large private blocks, sit well within the first 16 MiB; a nested bomb
+  // that needs more bytes than that to exceed the depth limit is shallower than DCMTK's limit.
+  constexpr std::size_t kHeadBytes = std::size_t{16} << 20;
+  std::error_code size_error;
+  const auto file_size = std::filesystem::file_size(file, size_error);
+  std::vector<unsigned char> bytes(size_error ? kHeadBytes
+                                              : std::min<std::size_t>(kHeadBytes, file_size));
+  stream.read(reinterpret_cast<char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  bytes.resize(static_cast<std::size_t>(stream.gcount()));
+  return bytes;
+}
+
+std::vector<unsigned char> inflate_raw(const unsigned char* data, std::size_t size) {
+  std::vector<unsigned char> out;
+  z_stream z{};
+  if (inflateInit2(&z, -MAX_WBITS) != Z_OK) return out;
+  z.next_in = const_cast<unsigned char*>(data);
+  z.avail_in = static_cast<uInt>(size);
+  std::array<unsigned char, 1 << 16> chunk{};
+  int status = Z_OK;
+  while (status == Z_OK && out.size() < kMaxInflatedBytes) {
+    z.next_out = chunk.data();
+    z.avail_out = static_cast<uInt>(chunk.size());
+    status = inflate(&z, Z_NO_FLUSH);
+    out.insert(out.end(), chunk.data(), chunk.data() + (chunk.size() - z.avail_out));
+  }
+  inflateEnd(&z);
+  return out;
+}
+
+}  // namespace
+
+NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) {
+  NestingReport report;
+  std::vector<unsigned char> bytes = read_head(file, report.error);
+  if (!report.error.empty()) return report;
+
+  ByteReader head(std::move(bytes));
+  Encoding dataset_encoding;
+  const bool has_preamble = head.size() >= 132 && head.chars(128, 4) == "DICM";
+  if (has_preamble) head.skip(132);
+  // The meta header (group 0002) is always explicit little endian; read it to learn how the
+  // data set is encoded.
+  std::string transfer_syntax;
+  while (head.has(8)) {
+    const std::size_t start = head.pos();
+    const std::uint16_t group = head.u16(false);
+    const std::uint16_t element = head.u16(false);
+    if (group != 0x0002 || !looks_like_vr(head.chars(head.pos(), 2))) {
+      head.seek(start);
+      break;
+    }
+    const std::string_view vr = head.chars(head.pos(), 2);
+    head.skip(2);
+    std::uint32_t length = 0;
+    if (is_long_vr(vr)) {
+      head.skip(2);
+      if (!head.has(4)) break;
+      length = head.u32(false);
+    } else {
+      length = head.u16(false);
+    }
+    if (element == 0x0010 && head.has(length)) {
+      transfer_syntax = std::string(head.chars(head.pos(), length));
+      while (!transfer_syntax.empty() &&
+             (transfer_syntax.back() == '\0' || transfer_syntax.back() == ' ')) {
+        transfer_syntax.pop_back();
+      }
+    }
+    head.skip(length);
+  }
+
+  if (transfer_syntax == "1.2.840.10008.1.2") {
+    dataset_encoding.explicit_vr = false;
+  } else if (transfer_syntax == "1.2.840.10008.1.2.2") {
+    dataset_encoding.big_endian = true;
+  } else if (transfer_syntax.empty() && head.has(6)) {
+    // No meta header: guess explicit VR from the first element's VR characters.
+    dataset_encoding.explicit_vr = looks_like_vr(head.chars(head.pos() + 4, 2));
+  }
+
+  if (transfer_syntax == "1.2.840.10008.1.2.1.99") {
+    report.deflated = true;
+    const auto& all = head.bytes();
+    ByteReader inflated(inflate_raw(all.data() + head.pos(), all.size() - head.pos()));
+    report.max_depth = walk(inflated, dataset_encoding, max_depth, report.error);
+  } else {
+    report.max_depth = walk(head, dataset_encoding, max_depth, report.error);
+  }
+  return report;
+}
+
+}  // namespace typemerge::dicom

@@ -1,0 +1,209 @@
+#include "dicom/pixel_reader.h"
+
+#include <dcmtk/dcmdata/dcdeftag.h>
+#include <dcmtk/dcmdata/dcfilefo.h>
+#include <dcmtk/dcmdata/dcpixel.h>
+#include <dcmtk/dcmdata/dcpixseq.h>
+#include <dcmtk/dcmdata/dcpxitem.h>
+#include <dcmtk/dcmdata/dcrledrg.h>
+#include <dcmtk/dcmdata/dcxfer.h>
+#include <dcmtk/dcmjpeg/djdecode.h>
+#include <dcmtk/dcmjpls/djdecode.h>
+
+#include <mutex>
+
+#include "dicom/header_reader.h"
+#include "dicom/jpeg2000_decoder.h"
+#include "dicom/nesting_prescan.h"
+
+namespace typemerge::dicom {
+namespace {
+
+void register_decoders_once() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    silence_dcmtk_log();
+    DJDecoderRegistration::registerCodecs();
+    DJLSDecoderRegistration::registerCodecs();
+    DcmRLEDecoderRegistration::registerCodecs();
+  });
+}
+
+bool is_jpeg2000(E_TransferSyntax xfer) {
+  return xfer == EXS_JPEG2000LosslessOnly || xfer == EXS_JPEG2000 ||
+         xfer == EXS_JPEG2000MulticomponentLosslessOnly || xfer == EXS_JPEG2000Multicomponent;
+}
+
+// How to turn a stored word into a signed value: BitsStored bits ending at HighBit.
+struct StoredLayout {
+  unsigned shift = 0;
+  std::uint32_t mask = 0;
+  std::int32_t sign_bit = 0;  // 0 for unsigned data
+
+  StoredLayout(unsigned bits_stored, unsigned high_bit, bool is_signed)
+      : shift(high_bit + 1 - bits_stored),
+        mask(bits_stored >= 32 ? 0xFFFFFFFFu : (1u << bits_stored) - 1),
+        sign_bit(is_signed ? std::int32_t{1} << (bits_stored - 1) : 0) {}
+
+  std::int32_t value(std::uint32_t word) const {
+    const auto bits = static_cast<std::int32_t>((word >> shift) & mask);
+    return (sign_bit != 0 && (bits & sign_bit)) ? bits - 2 * sign_bit : bits;
+  }
+};
+
+struct HuMapping {
+  double slope, intercept;
+  bool has_padding;
+  std::int32_t padding_low, padding_high;
+
+  explicit HuMapping(const SliceHeader& h)
+      : slope(h.rescale_slope), intercept(h.rescale_intercept),
+        has_padding(h.pixel_padding_value.has_value()),
+        padding_low(h.pixel_padding_value.value_or(0)),
+        padding_high(h.pixel_padding_range_limit.value_or(h.pixel_padding_value.value_or(0))) {
+    if (padding_low > padding_high) std::swap(padding_low, padding_high);
+  }
+  float hu(std::int32_t stored) const {
+    if (has_padding && stored >= padding_low && stored <= padding_high) return kAirHu;
+    return static_cast<float>(stored * slope + intercept);
+  }
+};
+
+[[noreturn]] void fail(const SliceHeader& header, const std::string& reason) {
+  throw PixelError(header.path.filename().string() + ": " + reason);
+}
+
+void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
+                   const std::vector<FrameTarget>& targets) {
+  const SliceHeader& header = *targets.front().header;
+  DcmElement* element = nullptr;
+  if (dataset.findAndGetElement(DCM_PixelData, element).bad() || element == nullptr) {
+    fail(header, "no pixel data");
+  }
+  auto* pixel_data = static_cast<DcmPixelData*>(element);
+  DcmPixelSequence* sequence = nullptr;
+  if (pixel_data->getEncapsulatedRepresentation(xfer, nullptr, sequence).bad() || !sequence) {
+    fail(header, "JPEG 2000 pixel data is not encapsulated");
+  }
+  const unsigned long fragments = sequence->card();  // item 0 is the basic offset table
+  const std::uint32_t frames = header.frames_in_file;
+  if (fragments < 2 || (frames > 1 && fragments - 1 != frames)) {
+    fail(header, "JPEG 2000 data with " + std::to_string(fragments - 1) + " fragments for " +
+                     std::to_string(frames) + " frames is not supported");
+  }
+  for (const FrameTarget& target : targets) {
+    std::vector<std::uint8_t> codestream;
+    const unsigned long first = frames == 1 ? 1 : target.header->frame + 1;
+    const unsigned long last = frames == 1 ? fragments - 1 : first;
+    for (unsigned long f = first; f <= last; ++f) {
+      DcmPixelItem* item = nullptr;
+      Uint8* bytes = nullptr;
+      if (sequence->getItem(item, f).bad() || item->getUint8Array(bytes).bad()) {
+        fail(header, "unreadable JPEG 2000 fragment");
+      }
+      codestream.insert(codestream.end(), bytes, bytes + item->getLength());
+    }
+    DecodedJpeg2000 decoded;
+    try {
+      decoded = decode_jpeg2000(codestream.data(), codestream.size());
+    } catch (const std::exception& error) {
+      fail(header, error.what());
+    }
+    if (decoded.width != header.columns || decoded.height != header.rows) {
+      fail(header, "JPEG 2000 frame is " + std::to_string(decoded.width) + "x" +
+                       std::to_string(decoded.height) + ", header says " +
+                       std::to_string(header.columns) + "x" + std::to_string(header.rows));
+    }
+    const HuMapping mapping(*target.header);
+    for (std::size_t p = 0; p < decoded.samples.size(); ++p) {
+      target.hu[p] = mapping.hu(decoded.samples[p]);
+    }
+  }
+}
+
+void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
+  const SliceHeader& header = *targets.front().header;
+  // Decoders may rewrite the pixel module (e.g. BitsStored of lossy JPEG): read it afresh.
+  Uint16 bits_allocated = header.bits_allocated, bits_stored = header.bits_stored;
+  Uint16 high_bit = header.high_bit, representation = header.pixel_representation;
+  dataset.findAndGetUint16(DCM_BitsAllocated, bits_allocated);
+  dataset.findAndGetUint16(DCM_BitsStored, bits_stored);
+  dataset.findAndGetUint16(DCM_HighBit, high_bit);
+  dataset.findAndGetUint16(DCM_PixelRepresentation, representation);
+  if ((bits_allocated != 8 && bits_allocated != 16) || bits_stored == 0 ||
+      bits_stored > bits_allocated || high_bit >= bits_allocated || high_bit + 1 < bits_stored) {
+    fail(header, "inconsistent pixel module after decoding");
+  }
+  const StoredLayout layout(bits_stored, high_bit, representation == 1);
+  const std::size_t frame_pixels = std::size_t{header.rows} * header.columns;
+  const std::size_t total_pixels = frame_pixels * header.frames_in_file;
+
+  DcmElement* element = nullptr;
+  if (dataset.findAndGetElement(DCM_PixelData, element).bad() || element == nullptr) {
+    fail(header, "no pixel data");
+  }
+  if (element->getLength() < total_pixels * (bits_allocated / 8u)) {
+    fail(header, "pixel data is " + std::to_string(element->getLength()) + " bytes, expected " +
+                     std::to_string(total_pixels * (bits_allocated / 8u)));
+  }
+  if (bits_allocated == 16) {
+    Uint16* words = nullptr;
+    if (element->getUint16Array(words).bad() || words == nullptr) fail(header, "unreadable pixels");
+    for (const FrameTarget& target : targets) {
+      const HuMapping mapping(*target.header);
+      const Uint16* frame = words + frame_pixels * target.header->frame;
+      for (std::size_t p = 0; p < frame_pixels; ++p) {
+        target.hu[p] = mapping.hu(layout.value(frame[p]));
+      }
+    }
+  } else {
+    Uint8* bytes = nullptr;
+    if (element->getUint8Array(bytes).bad() || bytes == nullptr) fail(header, "unreadable pixels");
+    for (const FrameTarget& target : targets) {
+      const HuMapping mapping(*target.header);
+      const Uint8* frame = bytes + frame_pixels * target.header->frame;
+      for (std::size_t p = 0; p < frame_pixels; ++p) {
+        target.hu[p] = mapping.hu(layout.value(frame[p]));
+      }
+    }
+  }
+}
+
+}  // namespace
+
+std::string transfer_syntax_name(const std::string& uid) {
+  const DcmXfer xfer(uid.c_str());
+  if (xfer.getXfer() == EXS_Unknown) return "unknown transfer syntax " + uid;
+  return xfer.getXferName();
+}
+
+void read_frames_hu(const std::vector<FrameTarget>& targets) {
+  if (targets.empty()) return;
+  register_decoders_once();
+  const SliceHeader& header = *targets.front().header;
+  // The file may have changed since the scan; the nesting check is cheap, so repeat it.
+  const NestingReport nesting = prescan_nesting(header.path);
+  if (!nesting.error.empty()) fail(header, nesting.error);
+
+  DcmFileFormat format;
+  const OFCondition loaded = format.loadFile(OFFilename(header.path.c_str()));
+  if (loaded.bad()) fail(header, std::string("cannot read: ") + loaded.text());
+  DcmDataset& dataset = *format.getDataset();
+  const E_TransferSyntax xfer = dataset.getOriginalXfer();
+  try {
+    if (is_jpeg2000(xfer)) {
+      read_jpeg2000(dataset, xfer, targets);
+      return;
+    }
+    const OFCondition decoded = dataset.chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
+    if (decoded.bad() || !dataset.canWriteXfer(EXS_LittleEndianExplicit)) {
+      fail(header, "unsupported transfer syntax " + transfer_syntax_name(header.transfer_syntax_uid) +
+                       " (" + decoded.text() + ")");
+    }
+    read_native(dataset, targets);
+  } catch (const std::bad_alloc&) {
+    fail(header, "out of memory while decoding");
+  }
+}
+
+}  // namespace typemerge::dicom

@@ -1,0 +1,35 @@
+// Decodes the pixels of one file into Hounsfield units, frame by frame.
+//
+// Uncompressed and every syntax DCMTK decodes (JPEG baseline/extended/lossless, JPEG-LS, RLE;
+// only those decoders are registered) go through DCMTK; JPEG 2000 goes through OpenJPEG.
+// Stored values honour BitsStored, HighBit and PixelRepresentation exactly; each frame's own
+// RescaleSlope/RescaleIntercept is applied; PixelPaddingValue (and its range) become air.
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "dicom/slice_header.h"
+
+namespace typemerge::dicom {
+
+inline constexpr float kAirHu = -1000.0f;
+
+class PixelError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct FrameTarget {
+  const SliceHeader* header;  // the frame to decode (all targets come from the same file)
+  float* hu;                  // rows × columns floats, x fastest
+};
+
+// Throws PixelError naming the file and the reason.
+void read_frames_hu(const std::vector<FrameTarget>& targets);
+
+// Name of a transfer syntax for messages ("JPEG 2000 Image Compression (Lossless Only)").
+std::string transfer_syntax_name(const std::string& uid);
+
+}  // namespace typemerge::dicom

@@ -1,0 +1,109 @@
+#include "dicom/series_loader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+
+#include "dicom/pixel_reader.h"
+
+namespace typemerge::dicom {
+namespace {
+
+// Decodes every acquired slice into `stack` (one slice per ordered header), file by file, so
+// a multi-frame file is decoded once.
+void decode_stack(const SeriesInfo& series, float* stack, std::size_t slice_voxels) {
+  std::map<std::filesystem::path, std::vector<FrameTarget>> by_file;
+  for (std::size_t k = 0; k < series.slices.size(); ++k) {
+    by_file[series.slices[k].path].push_back({&series.slices[k], stack + k * slice_voxels});
+  }
+  for (const auto& [path, targets] : by_file) read_frames_hu(targets);
+}
+
+// Linear resampling along the slice line onto the uniform grid the geometry chose.
+void resample_stack(const std::vector<float>& stack, const StackGeometry& geometry,
+                    std::size_t slice_voxels, core::Volume& volume) {
+  const auto& offsets = geometry.normal_offsets;
+  std::size_t upper = 1;
+  for (std::int64_t k = 0; k < geometry.output_slices; ++k) {
+    const double at = offsets.front() + static_cast<double>(k) * geometry.slice_step_mm;
+    while (upper + 1 < offsets.size() && offsets[upper] < at) ++upper;
+    const double span = offsets[upper] - offsets[upper - 1];
+    const double t = std::clamp((at - offsets[upper - 1]) / span, 0.0, 1.0);
+    const float* a = stack.data() + (upper - 1) * slice_voxels;
+    const float* b = stack.data() + upper * slice_voxels;
+    float* out = volume.slice(k);
+    const auto weight = static_cast<float>(t);
+    for (std::size_t p = 0; p < slice_voxels; ++p) out[p] = a[p] + weight * (b[p] - a[p]);
+  }
+}
+
+}  // namespace
+
+std::string hounsfield_plausibility_warning(float min_value, float max_value) {
+  // Every CT volume of a body holds some air (around −1000 HU) outside or in the airways;
+  // data whose darkest value is far above it was most likely not rescaled to HU.
+  if (min_value <= -500.0f) return {};
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "values range from %.0f to %.0f: no air near -1000 HU, so these may not be "
+                "Hounsfield units and HU presets would not fit",
+                static_cast<double>(min_value), static_cast<double>(max_value));
+  return text;
+}
+
+LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
+  if (series.role != SeriesRole::volume) {
+    throw LoadError("series " + series.id + " is a localizer (" + series.role_reason +
+                    "), not a volume");
+  }
+  if (!series.geometry.ok()) {
+    throw LoadError("series " + series.id + " refused: " + series.geometry.error);
+  }
+  const StackGeometry& geometry = series.geometry;
+  const core::VolumeSize size{series.columns, series.rows, geometry.output_slices};
+  const std::size_t slice_voxels = std::size_t{series.columns} * series.rows;
+  const std::uint64_t acquired_bytes = std::uint64_t{slice_voxels} * series.slices.size() * 4;
+  const std::uint64_t grid_bytes = static_cast<std::uint64_t>(size.voxels()) * 4;
+  const std::uint64_t needed = grid_bytes + (geometry.needs_resampling ? acquired_bytes : 0);
+  if (needed > options.max_volume_bytes) {
+    throw LoadError("series " + series.id + " needs " + std::to_string(needed >> 20) +
+                    " MiB, above the limit of " + std::to_string(options.max_volume_bytes >> 20) +
+                    " MiB");
+  }
+
+  LoadedSeries loaded;
+  loaded.series_id = series.id;
+  loaded.tilt_degrees = geometry.tilt_degrees;
+  loaded.warnings = geometry.warnings;
+  loaded.warnings.insert(loaded.warnings.end(), series.warnings.begin(), series.warnings.end());
+  loaded.volume = core::Volume(size, geometry.index_to_patient);
+  try {
+    if (geometry.needs_resampling) {
+      std::vector<float> stack(slice_voxels * series.slices.size());
+      decode_stack(series, stack.data(), slice_voxels);
+      resample_stack(stack, geometry, slice_voxels, loaded.volume);
+    } else {
+      decode_stack(series, loaded.volume.samples().data(), slice_voxels);
+    }
+  } catch (const PixelError& error) {
+    throw LoadError("series " + series.id + ": " + error.what());
+  }
+
+  const bool missing_rescale = std::any_of(series.slices.begin(), series.slices.end(),
+                                           [](const SliceHeader& s) { return !s.has_rescale; });
+  if (missing_rescale) {
+    loaded.warnings.emplace_back("no RescaleSlope/RescaleIntercept: stored values used as they are");
+  }
+  const auto [lowest, highest] =
+      std::minmax_element(loaded.volume.samples().begin(), loaded.volume.samples().end());
+  loaded.min_hu = *lowest;
+  loaded.max_hu = *highest;
+  if (auto warning = hounsfield_plausibility_warning(loaded.min_hu, loaded.max_hu);
+      !warning.empty()) {
+    loaded.warnings.push_back(std::move(warning));
+  }
+  return loaded;
+}
+
+}  // namespace typemerge::dicom

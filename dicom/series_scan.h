@@ -1,0 +1,79 @@
+// scan_folder: from a folder tree to the series it holds, each classified and checked.
+//
+// Every file is classified (CT image, other image, non-image DICOM, not DICOM, unreadable);
+// CT frames are grouped into series by study, series, frame of reference, image size, pixel
+// spacing, image type and orientation. Localizers (ImageType LOCALIZER, or slices whose
+// orientation differs from the rest of their series) become series of their own that are
+// never offered as volumes. Nothing is written into the input tree, and one bad file never
+// stops the scan of the others.
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dicom/header_reader.h"
+#include "dicom/slice_geometry.h"
+#include "dicom/slice_header.h"
+
+namespace typemerge::dicom {
+
+struct ScanOptions {
+  int max_depth = 16;             // folder levels below the root
+  bool follow_symlinks = false;
+  std::size_t max_files = 200000;
+  HeaderReadOptions header;
+  GeometryOptions geometry;
+};
+
+struct SkippedFile {
+  std::filesystem::path path;  // relative to the scanned root
+  FileKind kind = FileKind::not_dicom;
+  std::string reason;
+};
+
+enum class SeriesRole {
+  volume,     // candidate for a volume
+  localizer,  // scout / localizer: never stacked
+};
+
+struct SeriesInfo {
+  std::string id;  // short, non-identifying, stable: derived from a hash of the UIDs
+  std::string description;
+  std::string modality;
+  std::string convolution_kernel;
+  std::int32_t series_number = 0;
+  SeriesRole role = SeriesRole::volume;
+  std::string role_reason;
+  std::vector<SliceHeader> slices;  // in the order given by geometry.order
+  std::uint16_t rows = 0, columns = 0;
+  StackGeometry geometry;
+  std::vector<std::string> warnings;  // header warnings of its files
+
+  bool usable() const { return role == SeriesRole::volume && geometry.ok(); }
+};
+
+struct FolderScan {
+  std::filesystem::path root;
+  std::size_t files_seen = 0;
+  std::vector<SeriesInfo> series;     // sorted by series number, then id
+  std::vector<SkippedFile> skipped;   // sorted by path
+  std::vector<std::string> warnings;  // scan-level: depth limit, file limit, unreadable folders
+  std::optional<std::size_t> default_series;  // index into series
+
+  const SeriesInfo* find(const std::string& id) const;
+};
+
+// Folder or single file. Throws std::runtime_error when the root does not exist.
+FolderScan scan_folder(const std::filesystem::path& root, const ScanOptions& options);
+
+// Groups already-read headers into series (exposed for tests and fuzzing).
+std::vector<SeriesInfo> group_into_series(std::vector<SliceHeader> headers,
+                                          const GeometryOptions& options);
+
+// The CT series with the most slices among the usable ones; ties: the thinnest spacing,
+// then the lowest series number and id (so the choice is stable).
+std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& series);
+
+}  // namespace typemerge::dicom

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package the project builds, tests and benchmarks with.
+# Idempotent: packages already present are skipped, so a second run costs one dpkg query.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build ccache pkg-config
+  libdcmtk-dev            # DICOM parsing and the JPEG / JPEG-LS / RLE codecs
+  libopenjp2-7-dev        # JPEG 2000 decoding, which Debian's DCMTK lacks
+  libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
+  libopenmesh-dev         # mesh finishing: components, smoothing, decimation
+  libcli11-dev            # command line
+  nlohmann-json3-dev      # reports and `info --json`
+  libtbb-dev              # parallel slabs and decoding
+  libgtest-dev libgmock-dev libbenchmark-dev
+  dcm2niix                # independent reference for the loader tests
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  echo "installing: ${missing[*]}" >&2
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi

@@ -1,0 +1,31 @@
+// Options shared by every command that reads a DICOM folder, bound once to CLI11.
+#pragma once
+
+#include <string>
+
+#include "dicom/series_loader.h"
+#include "dicom/series_scan.h"
+
+namespace CLI {
+class App;
+}
+
+namespace typemerge::app {
+
+struct InputOptions {
+  std::string input;
+  bool resample_spacing = false;
+  bool allow_non_ct = false;
+  bool follow_symlinks = false;
+  int max_depth = 16;
+
+  dicom::ScanOptions scan_options() const;
+};
+
+void add_input_options(CLI::App& command, InputOptions& options);
+
+// Scans the folder and picks the series: `series_id` if given, else the default one.
+// Throws CommandError (input refused) with the reason when there is none to load.
+const dicom::SeriesInfo& select_series(const dicom::FolderScan& scan, const std::string& series_id);
+
+}  // namespace typemerge::app

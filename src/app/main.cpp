@@ -1,0 +1,46 @@
+// typemerge: CT series in, printable surfaces out. Commands are composed here and only here.
+#include <CLI/CLI.hpp>
+
+#include <iostream>
+
+#include "app/exit_codes.h"
+#include "app/info_command.h"
+#include "app/volume_command.h"
+#include "app/version.h"
+
+int main(int argc, char** argv) {
+  using namespace typemerge::app;
+  CLI::App app{"typemerge: from a CT DICOM folder to a printable surface"};
+  app.set_version_flag("--version", std::string(kVersion));
+  app.require_subcommand(1);
+  InfoOptions info;
+  VolumeOptions volume;
+  add_info_command(app, info);
+  add_volume_command(app, volume);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& help) {
+    return app.exit(help);
+  } catch (const CLI::CallForVersion& version) {
+    return app.exit(version);
+  } catch (const CLI::ParseError& error) {
+    app.exit(error);
+    return kExitUsage;
+  }
+
+  try {
+    if (app.got_subcommand("info")) return run_info(info, std::cout);
+    if (app.got_subcommand("volume")) return run_volume(volume, std::cerr);
+  } catch (const CommandError& error) {
+    std::cerr << "typemerge: " << error.message << "\n";
+    return error.exit_code;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "typemerge: out of memory\n";
+    return kExitInputRefused;
+  } catch (const std::exception& error) {
+    std::cerr << "typemerge: internal error: " << error.what() << "\n";
+    return kExitInternal;
+  }
+  return kExitUsage;
+}

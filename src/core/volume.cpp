@@ -1,0 +1,29 @@
+#include "volume.h"
+
+#include <cmath>
+
+namespace typemerge::core {
+
+Vec3 IndexToPatient::apply(double i, double j, double k) const {
+  Vec3 p = origin;
+  for (int c = 0; c < 3; ++c) p[c] += i * axes[0][c] + j * axes[1][c] + k * axes[2][c];
+  return p;
+}
+
+double IndexToPatient::determinant() const {
+  const Vec3& a = axes[0];
+  const Vec3& b = axes[1];
+  const Vec3& c = axes[2];
+  return a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) +
+         a[2] * (b[0] * c[1] - b[1] * c[0]);
+}
+
+double IndexToPatient::spacing(int axis) const {
+  const Vec3& a = axes[axis];
+  return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+}
+
+Volume::Volume(VolumeSize size, IndexToPatient geometry)
+    : size_(size), geometry_(geometry), samples_(static_cast<std::size_t>(size.voxels()), 0.0f) {}
+
+}  // namespace typemerge::core

@@ -1,0 +1,71 @@
+// Volume: a 3D scalar image in Hounsfield units with its exact place in patient space.
+//
+// The core works in voxel index space (i along a row, j down the columns, k across slices);
+// one affine map takes an index to patient LPS millimetres. The map is general (not only
+// rotation × spacing) because a gantry-tilted CT series is a sheared grid: its slice step is
+// not parallel to the slice normal, and placing a surface exactly needs the shear, not a
+// resampling.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace typemerge::core {
+
+using Vec3 = std::array<double, 3>;
+
+// index (i, j, k) → LPS mm:  origin + i·axes[0] + j·axes[1] + k·axes[2].
+struct IndexToPatient {
+  Vec3 origin{0, 0, 0};                                  // centre of voxel (0,0,0), mm
+  std::array<Vec3, 3> axes{{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};  // one index step, mm
+
+  Vec3 apply(double i, double j, double k) const;
+  // Determinant of [axes]: negative means the index frame is left-handed in LPS, so a
+  // surface extracted in index space has to flip its winding to stay outward.
+  double determinant() const;
+  double spacing(int axis) const;  // length of axes[axis]
+};
+
+struct VolumeSize {
+  std::int64_t nx = 0;  // columns (i)
+  std::int64_t ny = 0;  // rows (j)
+  std::int64_t nz = 0;  // slices (k)
+  std::int64_t voxels() const { return nx * ny * nz; }
+  bool operator==(const VolumeSize&) const = default;
+};
+
+// Dense HU samples, x fastest, then y, then z (slice after slice).
+class Volume {
+ public:
+  Volume() = default;
+  Volume(VolumeSize size, IndexToPatient geometry);
+
+  const VolumeSize& size() const { return size_; }
+  const IndexToPatient& geometry() const { return geometry_; }
+  void set_geometry(const IndexToPatient& geometry) { geometry_ = geometry; }
+
+  float at(std::int64_t i, std::int64_t j, std::int64_t k) const {
+    return samples_[static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k))];
+  }
+  float& at(std::int64_t i, std::int64_t j, std::int64_t k) {
+    return samples_[static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k))];
+  }
+  const float* slice(std::int64_t k) const {
+    return samples_.data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+  }
+  float* slice(std::int64_t k) {
+    return samples_.data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+  }
+  const std::vector<float>& samples() const { return samples_; }
+  std::vector<float>& samples() { return samples_; }
+
+ private:
+  VolumeSize size_;
+  IndexToPatient geometry_;
+  std::vector<float> samples_;
+};
+
+}  // namespace typemerge::core
