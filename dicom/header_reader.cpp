@@ -162,6 +162,16 @@ void read_headers_or_throw(const std::filesystem::path& file, const HeaderReadOp
     throw Refusal{"refused before parsing: " + nesting.error};
   }
 
+  // A cut-off file is the commonest damage (an interrupted copy); say so plainly.
+  const std::uint64_t file_bytes = file_size_or_zero(file);
+  if (nesting.pixel_data_offset && nesting.pixel_data_length != 0xFFFFFFFFu &&
+      *nesting.pixel_data_offset + std::uint64_t{nesting.pixel_data_length} > file_bytes) {
+    result.kind = FileKind::unreadable;
+    throw Refusal{"truncated file: pixel data ends at byte " +
+                  std::to_string(*nesting.pixel_data_offset + nesting.pixel_data_length) +
+                  " of a " + std::to_string(file_bytes) + "-byte file"};
+  }
+
   DcmFileFormat format;
   const OFCondition loaded =
       format.loadFile(OFFilename(file.c_str()), EXS_Unknown, EGL_noChange, kLazyValueBytes,
@@ -279,15 +289,10 @@ void read_headers_or_throw(const std::filesystem::path& file, const HeaderReadOp
   }
   const DcmXfer xfer(dataset.getOriginalXfer());
   const Uint32 pixel_length = pixel_data->getLength();
-  const std::uint64_t file_bytes = file_size_or_zero(file);
   if (!xfer.isEncapsulated()) {
     if (pixel_length < expected_bytes) {
       throw Refusal{"pixel data is " + std::to_string(pixel_length) + " bytes, expected " +
                     std::to_string(expected_bytes)};
-    }
-    if (xfer.getXfer() != EXS_DeflatedLittleEndianExplicit && pixel_length > file_bytes) {
-      throw Refusal{"pixel data length " + std::to_string(pixel_length) +
-                    " exceeds the file size " + std::to_string(file_bytes) + " (truncated file)"};
     }
   }
 

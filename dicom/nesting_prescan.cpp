@@ -65,7 +65,8 @@ struct Encoding {
 
 // Walks elements from the reader's position to its end (or the pixel data). Containers with
 // a defined length close when the position passes their end; undefined ones at delimiters.
-int walk(ByteReader& in, Encoding enc, int max_depth, std::string& error) {
+int walk(ByteReader& in, Encoding enc, int max_depth, std::string& error,
+         NestingReport* pixel_report) {
   std::vector<std::size_t> open_ends;  // end offset of each open container (npos: undefined)
   int deepest = 0;
   auto close_finished = [&] {
@@ -102,7 +103,13 @@ int walk(ByteReader& in, Encoding enc, int max_depth, std::string& error) {
       } else {
         length = in.u32(enc.big_endian);
       }
-      if (group == 0x7FE0 && element == 0x0010 && open_ends.empty()) break;  // pixel data
+      if (group == 0x7FE0 && element == 0x0010 && open_ends.empty()) {  // pixel data: stop
+        if (pixel_report != nullptr) {
+          pixel_report->pixel_data_offset = in.pos();
+          pixel_report->pixel_data_length = length;
+        }
+        break;
+      }
       // Undefined length means a sequence (or UN-encoded one); an implicit-VR element of
       // defined length is a sequence when its value starts with an item tag.
       if (!sequence && length != kUndefinedLength && in.has(4)) {
@@ -219,9 +226,9 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     report.deflated = true;
     const auto& all = head.bytes();
     ByteReader inflated(inflate_raw(all.data() + head.pos(), all.size() - head.pos()));
-    report.max_depth = walk(inflated, dataset_encoding, max_depth, report.error);
+    report.max_depth = walk(inflated, dataset_encoding, max_depth, report.error, nullptr);
   } else {
-    report.max_depth = walk(head, dataset_encoding, max_depth, report.error);
+    report.max_depth = walk(head, dataset_encoding, max_depth, report.error, &report);
   }
   return report;
 }
