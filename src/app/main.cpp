@@ -3,8 +3,10 @@
 
 #include <iostream>
 
+#include "app/convert_command.h"
 #include "app/exit_codes.h"
 #include "app/info_command.h"
+#include "app/stats_command.h"
 #include "app/volume_command.h"
 #include "app/version.h"
 
@@ -15,8 +17,12 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   InfoOptions info;
   VolumeOptions volume;
+  ConvertOptions convert;
+  StatsOptions stats;
   add_info_command(app, info);
   add_volume_command(app, volume);
+  add_convert_command(app, convert);
+  add_stats_command(app, stats);
 
   try {
     app.parse(argc, argv);
@@ -32,6 +38,8 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("info")) return run_info(info, std::cout);
     if (app.got_subcommand("volume")) return run_volume(volume, std::cerr);
+    if (app.got_subcommand("convert")) return run_convert(convert, std::cerr);
+    if (app.got_subcommand("stats")) return run_stats(stats, std::cout);
   } catch (const CommandError& error) {
     std::cerr << "typemerge: " << error.message << "\n";
     return error.exit_code;

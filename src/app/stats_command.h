@@ -1,0 +1,21 @@
+// `typemerge stats mesh.stl [--json]`: the numbers that say whether a mesh is printable.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace typemerge::app {
+
+struct StatsOptions {
+  std::string mesh;
+  bool json = false;
+};
+
+void add_stats_command(CLI::App& app, StatsOptions& options);
+int run_stats(const StatsOptions& options, std::ostream& out);
+
+}  // namespace typemerge::app

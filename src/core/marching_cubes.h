@@ -1,0 +1,74 @@
+// extract_isosurface: topologically consistent marching cubes (the reference extractor of the
+// core), after Lorensen & Cline 1987 with ambiguous faces decided by the asymptotic decider
+// of Nielson & Hamann 1991 and each cube triangulated by the face-loop construction of
+// type-merging-spec.md §5.3 (tables in cube_tables.h).
+//
+// Conventions:
+//  * a sample is inside when value >= iso (state 1, spec §1.1);
+//  * surface vertices lie on lattice edges and are shared by every cube around the edge, so
+//    the mesh is indexed and crack-free; positions are in voxel index space;
+//  * triangles are wound outward (right-hand rule points from inside to outside) and vertex
+//    normals are the negated, interpolated central-difference gradient (toward lower values);
+//  * ties: a sample equal to iso is inside, but the vertex on an edge is never placed closer
+//    than kEdgeMargin (in edge units) to either end, so two vertices never coincide and no
+//    triangle has zero area even on integer data with an integral iso.
+#pragma once
+
+#include <array>
+#include <cstddef>
+
+#include "core/mesh.h"
+#include "core/volume.h"
+
+namespace typemerge::core {
+
+// Counts in the style of Table 4 of Oh & Park 1996.
+struct AmbiguityStats {
+  std::size_t boundary_cubes = 0;  // cubes with inside and outside corners
+  // Boundary cubes by their number of ambiguous faces (only 0, 1, 2, 3 and 6 occur).
+  std::array<std::size_t, 7> cubes_with_ambiguous_faces{};
+  // Ambiguous faces (counted once per cube that sees them) the decider resolved as joined.
+  std::size_t joined_faces = 0;
+  // Loops that needed an extra centre vertex (no fan apex avoids the cube faces).
+  std::size_t centroid_vertices = 0;
+};
+
+struct ExtractOptions {
+  enum class Mode {
+    // Every ambiguous face decided by the asymptotic decider from its own four values, every
+    // cube triangulated to match: closed, manifold, consistently oriented.
+    consistent,
+    // One fixed triangulation per cube index (spec §5.2): leaves holes where two cubes
+    // disagree about a shared ambiguous face. For demonstrating what consistent mode fixes.
+    classic,
+  };
+
+  // Treat everything outside the volume as outside (below iso), so a surface that meets the
+  // volume border is closed by a cap lying kEdgeMargin outside the border samples.
+  bool close_borders = true;
+  Mode mode = Mode::consistent;
+  // When not null, filled with the statistics of this extraction.
+  AmbiguityStats* stats = nullptr;
+};
+
+// Smallest distance, as a fraction of the edge, between a surface vertex and a sample.
+inline constexpr float kEdgeMargin = 1e-3f;
+
+// Extracts the iso-surface value == iso of `volume` (samples must be finite). An empty or
+// too small volume (or one without a crossing) gives an empty mesh.
+TriangleMesh extract_isosurface(const Volume& volume, float iso,
+                                const ExtractOptions& options = {});
+
+namespace detail {
+
+// The asymptotic decider for one face with corner values a, b, c, d in cyclic order, where
+// a and c are inside (>= iso) and b and d outside: true when the bilinear interpolant's
+// saddle value is >= iso, i.e. the contour joins a and c across the face. Written without
+// the division, (a−iso)(c−iso) >= (b−iso)(d−iso), which is equivalent because the
+// denominator a + c − b − d is positive, and symmetric in a↔c and b↔d so both cubes sharing
+// the face compute the same answer.
+bool face_joins_inside(float a, float b, float c, float d, float iso);
+
+}  // namespace detail
+
+}  // namespace typemerge::core

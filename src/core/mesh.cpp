@@ -1,0 +1,45 @@
+// to_patient: voxel index space → patient LPS millimetres for a TriangleMesh.
+#include "core/mesh.h"
+
+#include <cassert>
+#include <cmath>
+#include <utility>
+
+namespace typemerge::core {
+
+void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry) {
+  const double det = geometry.determinant();
+  assert(det != 0.0);
+  const auto& a = geometry.axes;
+
+  for (auto& p : mesh.positions) {
+    const Vec3 q = geometry.apply(p[0], p[1], p[2]);
+    p = {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
+  }
+
+  // The linear part M has the axes as columns (patient = origin + M·index). A gradient
+  // transforms with M^{-T}; its rows are the cofactor vectors axes[1]×axes[2], axes[2]×axes[0],
+  // axes[0]×axes[1], each divided by det. The common factor 1/det only scales, but its sign
+  // matters, so keep it.
+  auto cross = [](const Vec3& u, const Vec3& v) {
+    return Vec3{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+  };
+  const std::array<Vec3, 3> cof = {cross(a[1], a[2]), cross(a[2], a[0]), cross(a[0], a[1])};
+  for (auto& n : mesh.normals) {
+    Vec3 m{0, 0, 0};
+    for (int c = 0; c < 3; ++c) {
+      m[c] = (cof[0][c] * n[0] + cof[1][c] * n[1] + cof[2][c] * n[2]) / det;
+    }
+    const double length = std::sqrt(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+    if (length > 0.0) {
+      n = {static_cast<float>(m[0] / length), static_cast<float>(m[1] / length),
+           static_cast<float>(m[2] / length)};
+    }
+  }
+
+  if (det < 0.0) {
+    for (auto& t : mesh.triangles) std::swap(t[1], t[2]);
+  }
+}
+
+}  // namespace typemerge::core

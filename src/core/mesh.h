@@ -1,0 +1,32 @@
+// TriangleMesh: the indexed triangle surface the core produces, and the one map that takes it
+// from voxel index space to patient LPS millimetres.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "core/volume.h"
+
+namespace typemerge::core {
+
+// An indexed triangle mesh. positions[i] and normals[i] describe vertex i (normals are unit
+// length, or zero when unknown); triangles index into positions and are wound so that the
+// right-hand rule gives the outward side. Units are those of the producer: the extractor
+// writes voxel index space, to_patient converts to LPS mm.
+struct TriangleMesh {
+  std::vector<std::array<float, 3>> positions;
+  std::vector<std::array<float, 3>> normals;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+
+  bool empty() const { return triangles.empty(); }
+};
+
+// Maps positions with `geometry` (index → LPS mm) and normals with the inverse transpose of
+// its linear part (renormalised), so gradient normals stay perpendicular to the surface
+// under shear and anisotropic spacing. When the map reverses orientation (determinant < 0)
+// every triangle's winding is flipped so that it still faces outward.
+// Precondition: geometry.determinant() != 0.
+void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry);
+
+}  // namespace typemerge::core

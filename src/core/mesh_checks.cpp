@@ -1,0 +1,146 @@
+// check_mesh: edge counts by sorting half-edges, vertex links by sorting the link edges of
+// each vertex, components by union-find. Nothing clever, so it can serve as the oracle.
+#include "core/mesh_checks.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <numeric>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+namespace typemerge::core {
+namespace {
+
+class UnionFind {
+ public:
+  explicit UnionFind(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
+  std::size_t find(std::size_t x) {
+    while (parent_[x] != x) {
+      parent_[x] = parent_[parent_[x]];
+      x = parent_[x];
+    }
+    return x;
+  }
+  void unite(std::size_t a, std::size_t b) { parent_[find(a)] = find(b); }
+
+ private:
+  std::vector<std::size_t> parent_;
+};
+
+// A vertex is manifold when its link (the edges opposite it in its triangles) is one simple
+// path or one simple cycle: every link vertex has degree at most 2 and the link is connected.
+bool link_is_disk_or_fan(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link) {
+  std::vector<std::uint32_t> ends;
+  ends.reserve(link.size() * 2);
+  for (const auto& [a, b] : link) {
+    ends.push_back(a);
+    ends.push_back(b);
+  }
+  std::sort(ends.begin(), ends.end());
+  for (std::size_t i = 0; i + 2 < ends.size(); ++i) {
+    if (ends[i] == ends[i + 2]) return false;  // degree > 2
+  }
+  ends.erase(std::unique(ends.begin(), ends.end()), ends.end());
+  UnionFind sets(ends.size());
+  auto local = [&ends](std::uint32_t v) {
+    return static_cast<std::size_t>(std::lower_bound(ends.begin(), ends.end(), v) - ends.begin());
+  };
+  for (const auto& [a, b] : link) sets.unite(local(a), local(b));
+  for (std::size_t i = 1; i < ends.size(); ++i) {
+    if (sets.find(i) != sets.find(0)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+MeshCheck check_mesh(const TriangleMesh& mesh) {
+  MeshCheck check;
+  const std::size_t n = mesh.positions.size();
+
+  std::vector<std::array<std::uint32_t, 3>> valid;
+  valid.reserve(mesh.triangles.size());
+  for (const auto& t : mesh.triangles) {
+    assert(t[0] < n && t[1] < n && t[2] < n);
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
+      ++check.degenerate_triangles;
+      continue;
+    }
+    valid.push_back(t);
+    const auto& p0 = mesh.positions[t[0]];
+    const auto& p1 = mesh.positions[t[1]];
+    const auto& p2 = mesh.positions[t[2]];
+    const double a[3] = {double{p1[0]} - p0[0], double{p1[1]} - p0[1], double{p1[2]} - p0[2]};
+    const double b[3] = {double{p2[0]} - p0[0], double{p2[1]} - p0[1], double{p2[2]} - p0[2]};
+    const double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                         a[0] * b[1] - a[1] * b[0]};
+    if (c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0) ++check.degenerate_triangles;
+    check.area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    // Signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2) / 6.
+    const double q1[3] = {p1[0], p1[1], p1[2]};
+    const double q2[3] = {p2[0], p2[1], p2[2]};
+    check.volume +=
+        (p0[0] * (q1[1] * q2[2] - q1[2] * q2[1]) + p0[1] * (q1[2] * q2[0] - q1[0] * q2[2]) +
+         p0[2] * (q1[0] * q2[1] - q1[1] * q2[0])) /
+        6.0;
+  }
+  check.triangles = valid.size();
+
+  // Edges: half-edges sorted by their undirected key, then by direction.
+  struct HalfEdge {
+    std::uint32_t lo, hi;
+    bool forward;  // runs lo → hi
+    bool operator<(const HalfEdge& o) const {
+      return std::tie(lo, hi, forward) < std::tie(o.lo, o.hi, o.forward);
+    }
+  };
+  std::vector<HalfEdge> half_edges;
+  half_edges.reserve(valid.size() * 3);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[k];
+      const std::uint32_t b = t[(k + 1) % 3];
+      half_edges.push_back({std::min(a, b), std::max(a, b), a < b});
+    }
+  }
+  std::sort(half_edges.begin(), half_edges.end());
+  for (std::size_t i = 0; i < half_edges.size();) {
+    std::size_t j = i;
+    std::size_t forward = 0;
+    while (j < half_edges.size() && half_edges[j].lo == half_edges[i].lo &&
+           half_edges[j].hi == half_edges[i].hi) {
+      forward += half_edges[j].forward ? 1 : 0;
+      ++j;
+    }
+    const std::size_t uses = j - i;
+    ++check.edges;
+    if (uses == 1) ++check.boundary_edges;
+    if (uses > 2) ++check.non_manifold_edges;
+    if (forward > 1 || uses - forward > 1) ++check.inconsistent_edges;
+    i = j;
+  }
+
+  // Vertices: links and components.
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> links(n);
+  UnionFind components(n);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) links[t[k]].emplace_back(t[(k + 1) % 3], t[(k + 2) % 3]);
+    components.unite(t[0], t[1]);
+    components.unite(t[1], t[2]);
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    if (links[v].empty()) continue;
+    ++check.vertices;
+    if (!link_is_disk_or_fan(links[v])) ++check.non_manifold_vertices;
+    if (components.find(v) == v) ++check.components;
+  }
+
+  check.euler_characteristic = static_cast<std::int64_t>(check.vertices) -
+                               static_cast<std::int64_t>(check.edges) +
+                               static_cast<std::int64_t>(check.triangles);
+  return check;
+}
+
+}  // namespace typemerge::core

@@ -1,0 +1,43 @@
+// check_mesh: exact combinatorial and geometric invariants of a TriangleMesh — the oracle the
+// extraction and merging tests are written against, so it is kept simple enough to trust.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+#include "core/mesh.h"
+
+namespace typemerge::core {
+
+struct MeshCheck {
+  std::size_t vertices = 0;   // vertices used by at least one valid triangle
+  std::size_t edges = 0;      // undirected edges of valid triangles
+  std::size_t triangles = 0;  // valid triangles (three distinct indices)
+
+  std::size_t boundary_edges = 0;         // used by exactly one triangle
+  std::size_t non_manifold_edges = 0;     // used by more than two triangles
+  std::size_t inconsistent_edges = 0;     // some direction of the edge used by two triangles
+  std::size_t non_manifold_vertices = 0;  // triangles around the vertex are not one disk or fan
+  std::size_t degenerate_triangles = 0;   // repeated index, or zero area
+  std::size_t components = 0;             // connected through shared vertices
+
+  std::int64_t euler_characteristic = 0;  // vertices − edges + triangles
+  double volume = 0.0;  // signed enclosed volume (divergence theorem); > 0 when wound outward
+  double area = 0.0;
+
+  // Every edge in exactly two triangles with opposite directions, manifold vertices, no
+  // degenerate triangle.
+  bool closed_manifold() const {
+    return boundary_edges == 0 && non_manifold_edges == 0 && inconsistent_edges == 0 &&
+           non_manifold_vertices == 0 && degenerate_triangles == 0;
+  }
+};
+
+// Checks `mesh`. A triangle with a repeated index counts as degenerate and is left out of
+// everything else; a triangle with distinct indices but zero area (the cross product of its
+// edge vectors, computed in double, is exactly zero) counts as degenerate but still takes
+// part in the topology, which it does not disturb.
+// Precondition: every index < mesh.positions.size().
+MeshCheck check_mesh(const TriangleMesh& mesh);
+
+}  // namespace typemerge::core

@@ -1,0 +1,167 @@
+// The typemerge executable as a user runs it: output, files written, exit codes.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "ct_writer/ct_writer.h"
+#include "support/test_data.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string out;  // stdout and stderr together
+};
+
+CommandRun run(const std::string& arguments) {
+  const std::string command = std::string(TYPEMERGE_EXE) + " " + arguments + " 2>&1";
+  CommandRun result;
+  FILE* pipe = popen(command.c_str(), "r");
+  std::array<char, 4096> buffer{};
+  while (std::size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) {
+    result.out.append(buffer.data(), n);
+  }
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("typemerge_cli_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// A 20×16×10 series with a bright ball, written with patient data that must never show up.
+fs::path write_ball_series(const std::string& name) {
+  const fs::path dir = fresh_dir(name);
+  typemerge::ct_writer::SeriesLayout layout;
+  layout.uid_seed = name;
+  layout.columns = 20;
+  layout.rows = 16;
+  layout.slices = 10;
+  layout.pixel_spacing = {0.5, 0.6};
+  layout.slice_spacing = 1.5;
+  layout.origin = {-100, 50, 20};
+  layout.hu = [](int i, int j, int k) {
+    const double d = std::hypot(i - 10.0, j - 8.0, (k - 5.0) * 2);
+    return d < 5 ? 1000.0 : -1000.0;
+  };
+  auto specs = typemerge::ct_writer::make_axial_series(layout);
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    specs[k].patient_name = "Canary^Patientname";
+    specs[k].patient_id = "CANARYID123";
+    specs[k].patient_birth_date = "19421111";
+    typemerge::ct_writer::write_ct_slice(specs[k], dir / ("f" + std::to_string(k)));
+  }
+  return dir;
+}
+
+TEST(Cli, InfoJsonDescribesTheSeriesWithoutPatientData) {
+  const fs::path dir = write_ball_series("info");
+  const CommandRun r = run("info --json " + dir.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto document = nlohmann::json::parse(r.out);
+  ASSERT_EQ(document["series"].size(), 1u);
+  const auto& series = document["series"][0];
+  EXPECT_EQ(series["size"], nlohmann::json({20, 16, 10}));
+  EXPECT_NEAR(series["spacing_mm"][0].get<double>(), 0.6, 1e-9);
+  EXPECT_NEAR(series["spacing_mm"][1].get<double>(), 0.5, 1e-9);
+  EXPECT_NEAR(series["spacing_mm"][2].get<double>(), 1.5, 1e-9);
+  EXPECT_EQ(series["hu_range"], nlohmann::json({-1000.0, 1000.0}));
+  EXPECT_EQ(document["default_series"], series["id"]);
+  for (const char* token : {"Canary", "CANARYID123", "19421111"}) {
+    EXPECT_EQ(r.out.find(token), std::string::npos) << token;
+  }
+}
+
+TEST(Cli, VolumeWritesNrrdWithLpsGeometry) {
+  const fs::path dir = write_ball_series("volume");
+  const fs::path out = fresh_dir("volume_out") / "ball.nrrd";
+  const CommandRun r = run("volume " + dir.string() + " -o " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  std::ifstream in(out, std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::size_t header_end = text.find("\n\n");
+  ASSERT_NE(header_end, std::string::npos);
+  const std::string header = text.substr(0, header_end);
+  EXPECT_NE(header.find("type: int16"), std::string::npos);
+  EXPECT_NE(header.find("sizes: 20 16 10"), std::string::npos);
+  EXPECT_NE(header.find("space: left-posterior-superior"), std::string::npos);
+  EXPECT_NE(header.find("space directions: (0.59999999999999998,0,0) (0,0.5,0) (0,0,1.5)"),
+            std::string::npos) << header;
+  EXPECT_NE(header.find("space origin: (-100,50,20)"), std::string::npos) << header;
+  EXPECT_EQ(text.size() - header_end - 2, std::size_t{20 * 16 * 10 * 2});
+  // The centre voxel of the ball is bone, a corner is air.
+  auto sample = [&](int i, int j, int k) {
+    std::int16_t v = 0;
+    std::memcpy(&v, text.data() + header_end + 2 + 2 * (i + 20 * (j + 16 * k)), 2);
+    return v;
+  };
+  EXPECT_EQ(sample(10, 8, 5), 1000);
+  EXPECT_EQ(sample(0, 0, 0), -1000);
+  EXPECT_EQ(r.out.find("Canary"), std::string::npos);
+}
+
+TEST(Cli, ExitCodes) {
+  EXPECT_EQ(run("").exit_code, 2);
+  EXPECT_EQ(run("info").exit_code, 2);
+  EXPECT_EQ(run("volume /nonexistent").exit_code, 2);  // -o is required
+  const CommandRun missing = run("info /nonexistent/folder");
+  EXPECT_EQ(missing.exit_code, 1);
+  EXPECT_NE(missing.out.find("no such file or folder"), std::string::npos) << missing.out;
+  const fs::path empty = fresh_dir("empty");
+  std::ofstream(empty / "readme.txt") << "not DICOM";
+  const CommandRun nothing = run("volume " + empty.string() + " -o " + (empty / "v.nrrd").string());
+  EXPECT_EQ(nothing.exit_code, 1);
+  EXPECT_NE(nothing.out.find("no usable CT series"), std::string::npos) << nothing.out;
+  EXPECT_FALSE(fs::exists(empty / "v.nrrd"));
+  const fs::path dir = write_ball_series("exit");
+  const CommandRun unknown = run("volume " + dir.string() + " --series s00000000 -o x.nrrd");
+  EXPECT_EQ(unknown.exit_code, 1);
+}
+
+TEST(Cli, UnwritableOutputFailsWithoutLeavingAFile) {
+  const fs::path dir = write_ball_series("unwritable");
+  const CommandRun r = run("volume " + dir.string() + " -o /nonexistent_folder/v.nrrd");
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_FALSE(fs::exists("/nonexistent_folder"));
+}
+
+TEST(Cli, OutputIsReplacedAtomically) {
+  // A leftover from an earlier run is replaced whole; no temporary file stays behind.
+  const fs::path dir = write_ball_series("atomic");
+  const fs::path out_dir = fresh_dir("atomic_out");
+  std::ofstream(out_dir / "v.nrrd") << "old";
+  ASSERT_EQ(run("volume " + dir.string() + " -o " + (out_dir / "v.nrrd").string()).exit_code, 0);
+  std::size_t files = 0;
+  for (const auto& entry : fs::directory_iterator(out_dir)) {
+    ++files;
+    EXPECT_EQ(entry.path().filename(), "v.nrrd");
+  }
+  EXPECT_EQ(files, 1u);
+  EXPECT_GT(fs::file_size(out_dir / "v.nrrd"), 1000u);
+}
+
+TEST(Cli, InfoOnThePhantomStudyNamesWhatItSkipped) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  const CommandRun r = run("info " + (data / "ct" / "phantom_study").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("localizer"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("secondary capture"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("DICOMDIR"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("512x512x28"), std::string::npos) << r.out;
+}
+
+}  // namespace

@@ -1,0 +1,126 @@
+// Tests of check_mesh on meshes small enough to count by hand.
+#include "core/mesh_checks.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace typemerge::core {
+namespace {
+
+//        3
+//       /|\          unit right tetrahedron at the origin, faces wound outward:
+//      / | \         V = 1/6, A = 3·1/2 + √3/2
+//     0--|--2
+//      \ | /
+//        1
+TriangleMesh tetrahedron() {
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  m.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  return m;
+}
+
+TEST(MeshChecks, TetrahedronIsAClosedSphere) {
+  const MeshCheck c = check_mesh(tetrahedron());
+  EXPECT_TRUE(c.closed_manifold());
+  EXPECT_EQ(c.vertices, 4u);
+  EXPECT_EQ(c.edges, 6u);
+  EXPECT_EQ(c.triangles, 4u);
+  EXPECT_EQ(c.euler_characteristic, 2);
+  EXPECT_EQ(c.components, 1u);
+  EXPECT_DOUBLE_EQ(c.volume, 1.0 / 6.0);
+  EXPECT_DOUBLE_EQ(c.area, 1.5 + std::sqrt(3.0) / 2.0);
+}
+
+TEST(MeshChecks, InwardWindingGivesNegativeVolume) {
+  TriangleMesh m = tetrahedron();
+  for (auto& t : m.triangles) std::swap(t[1], t[2]);
+  const MeshCheck c = check_mesh(m);
+  EXPECT_TRUE(c.closed_manifold());
+  EXPECT_DOUBLE_EQ(c.volume, -1.0 / 6.0);
+}
+
+TEST(MeshChecks, OneFlippedTriangleMakesThreeInconsistentEdges) {
+  TriangleMesh m = tetrahedron();
+  std::swap(m.triangles[3][1], m.triangles[3][2]);
+  const MeshCheck c = check_mesh(m);
+  EXPECT_EQ(c.inconsistent_edges, 3u);
+  EXPECT_EQ(c.boundary_edges, 0u);
+}
+
+TEST(MeshChecks, MissingTriangleLeavesABoundary) {
+  TriangleMesh m = tetrahedron();
+  m.triangles.pop_back();
+  const MeshCheck c = check_mesh(m);
+  EXPECT_EQ(c.boundary_edges, 3u);
+  EXPECT_EQ(c.non_manifold_vertices, 0u);  // a fan at the border is manifold
+  EXPECT_EQ(c.euler_characteristic, 1);    // a disk
+}
+
+TEST(MeshChecks, ThreeTrianglesOnOneEdgeAreNonManifold) {
+  // A book with three pages on the spine 0–1.
+  TriangleMesh m;
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, -1, 0}};
+  m.triangles = {{0, 1, 2}, {1, 0, 3}, {0, 1, 4}};
+  const MeshCheck c = check_mesh(m);
+  EXPECT_EQ(c.non_manifold_edges, 1u);
+  EXPECT_EQ(c.inconsistent_edges, 1u);  // two pages use 0→1
+  EXPECT_EQ(c.boundary_edges, 6u);
+}
+
+TEST(MeshChecks, TwoTetrahedraTouchingAtAVertexMakeANonManifoldVertex) {
+  TriangleMesh m = tetrahedron();
+  // Second tetrahedron: the first mirrored through vertex 0.
+  m.positions.push_back({-1, 0, 0});
+  m.positions.push_back({0, -1, 0});
+  m.positions.push_back({0, 0, -1});
+  m.triangles.push_back({0, 4, 5});
+  m.triangles.push_back({0, 6, 4});
+  m.triangles.push_back({0, 5, 6});
+  m.triangles.push_back({4, 6, 5});
+  const MeshCheck c = check_mesh(m);
+  EXPECT_EQ(c.non_manifold_vertices, 1u);
+  EXPECT_EQ(c.inconsistent_edges, 0u);
+  EXPECT_NEAR(c.volume, 2.0 / 6.0, 1e-12);
+  EXPECT_EQ(c.non_manifold_edges, 0u);
+  EXPECT_EQ(c.boundary_edges, 0u);
+  EXPECT_EQ(c.components, 1u);
+  EXPECT_EQ(c.euler_characteristic, 7 - 12 + 8);
+}
+
+TEST(MeshChecks, DegenerateTrianglesAreCounted) {
+  TriangleMesh m = tetrahedron();
+  m.triangles.push_back({1, 1, 2});  // repeated index: ignored otherwise
+  m.positions.push_back({2, 0, 0});  // collinear with 0 and 1
+  m.triangles.push_back({0, 1, 4});  // zero area, still topology
+  const MeshCheck c = check_mesh(m);
+  EXPECT_EQ(c.degenerate_triangles, 2u);
+  EXPECT_EQ(c.triangles, 5u);
+  EXPECT_EQ(c.vertices, 5u);
+}
+
+TEST(MeshChecks, ComponentsAndUnusedVertices) {
+  TriangleMesh m = tetrahedron();
+  const TriangleMesh t = tetrahedron();
+  m.positions.push_back({9, 9, 9});  // unused: not counted
+  const std::uint32_t base = static_cast<std::uint32_t>(m.positions.size());
+  for (auto p : t.positions) m.positions.push_back({p[0] + 5, p[1], p[2]});
+  for (auto tri : t.triangles) m.triangles.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
+  const MeshCheck c = check_mesh(m);
+  EXPECT_TRUE(c.closed_manifold());
+  EXPECT_EQ(c.components, 2u);
+  EXPECT_EQ(c.vertices, 8u);
+  EXPECT_EQ(c.euler_characteristic, 4);
+  EXPECT_NEAR(c.volume, 2.0 / 6.0, 1e-12);
+}
+
+TEST(MeshChecks, EmptyMesh) {
+  const MeshCheck c = check_mesh(TriangleMesh{});
+  EXPECT_TRUE(c.closed_manifold());
+  EXPECT_EQ(c.components, 0u);
+  EXPECT_EQ(c.euler_characteristic, 0);
+}
+
+}  // namespace
+}  // namespace typemerge::core

@@ -1,0 +1,43 @@
+// Volumes for the core tests: analytic fields sampled on the lattice, and noise.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+
+#include "core/volume.h"
+
+namespace typemerge::core::test {
+
+// Samples f(i, j, k) at every voxel index.
+template <typename Field>
+Volume sample_volume(std::int64_t nx, std::int64_t ny, std::int64_t nz, Field f) {
+  Volume volume({nx, ny, nz}, IndexToPatient{});
+  for (std::int64_t k = 0; k < nz; ++k) {
+    for (std::int64_t j = 0; j < ny; ++j) {
+      for (std::int64_t i = 0; i < nx; ++i) {
+        volume.at(i, j, k) = static_cast<float>(
+            f(static_cast<double>(i), static_cast<double>(j), static_cast<double>(k)));
+      }
+    }
+  }
+  return volume;
+}
+
+// R − |p − c|: positive inside the ball of radius R about c.
+inline Volume sphere_volume(std::int64_t n, double radius, double cx, double cy, double cz) {
+  return sample_volume(n, n, n, [=](double x, double y, double z) {
+    return radius - std::sqrt((x - cx) * (x - cx) + (y - cy) * (y - cy) + (z - cz) * (z - cz));
+  });
+}
+
+// Uniform noise in [0, 1).
+inline Volume noise_volume(std::int64_t nx, std::int64_t ny, std::int64_t nz, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  Volume volume({nx, ny, nz}, IndexToPatient{});
+  for (float& v : volume.samples()) v = uniform(rng);
+  return volume;
+}
+
+}  // namespace typemerge::core::test
