@@ -165,8 +165,11 @@ std::vector<SeriesInfo> group_into_series(std::vector<SliceHeader> headers,
         info.role_reason = "orientation differs from the rest of its series";
       }
       info.geometry = compute_stack_geometry(clusters[c], options);
-      for (std::size_t index : info.geometry.order) info.slices.push_back(clusters[c][index]);
-      if (info.slices.empty()) info.slices = std::move(clusters[c]);
+      if (info.geometry.ok()) {
+        for (std::size_t index : info.geometry.order) info.slices.push_back(clusters[c][index]);
+      } else {
+        info.slices = std::move(clusters[c]);  // refused: every image, for the report
+      }
       series.push_back(std::move(info));
     }
   }

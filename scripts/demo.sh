@@ -1,10 +1,15 @@
 #!/usr/bin/env bash
-# The README's first command: set up, build, and run typemerge on the shipped sample series.
+# The README's first command: set up, build, and run typemerge on the shipped sample series:
+# list what it holds, write its HU volume (NRRD) and its bone surface (binary STL), check it.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
 "$here/scripts/install_deps.sh"
 "$here/scripts/build.sh" "$here/build" -DCMAKE_BUILD_TYPE=Release -DTYPEMERGE_BUILD_TESTS=OFF
-mkdir -p "$here/out"
-"$here/build/src/app/typemerge" info "$here/sample_series"
-"$here/build/src/app/typemerge" volume "$here/sample_series" -o "$here/out/sample_volume.nrrd"
-echo "wrote $here/out/sample_volume.nrrd"
+tm="$here/build/src/app/typemerge"
+out="$here/out"
+mkdir -p "$out"
+"$tm" info "$here/sample_series"
+"$tm" volume "$here/sample_series" -o "$out/sample_volume.nrrd"
+"$tm" convert "$here/sample_series" --iso 300 -o "$out/sample_bone.stl"
+"$tm" stats "$out/sample_bone.stl"
+echo "outputs in $out"

@@ -165,3 +165,60 @@ TEST(Cli, InfoOnThePhantomStudyNamesWhatItSkipped) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Cli, ConvertWritesAClosedSurfaceInPatientSpaceThatStatsConfirms) {
+  const fs::path dir = write_ball_series("convert");
+  const fs::path out = fresh_dir("convert_out") / "ball.stl";
+  const CommandRun converted = run("convert " + dir.string() + " --iso 0 -o " + out.string());
+  ASSERT_EQ(converted.exit_code, 0) << converted.out;
+  const CommandRun stats = run("stats --json " + out.string());
+  ASSERT_EQ(stats.exit_code, 0) << stats.out;
+  const auto document = nlohmann::json::parse(stats.out);
+  EXPECT_TRUE(document["closed_manifold"].get<bool>());
+  EXPECT_EQ(document["components"], 1);
+  EXPECT_EQ(document["euler_characteristic"], 2);
+  // An ellipsoid of radii 5 columns (0.6 mm), 5 rows (0.5 mm), 2.5 slices (1.5 mm).
+  const double expected = 4.0 / 3.0 * M_PI * 3.0 * 2.5 * 3.75;
+  EXPECT_NEAR(document["volume_mm3"].get<double>(), expected, 0.3 * expected);
+
+  // Every vertex lies where the ball is in LPS: columns 4..16 from x = −100 mm, rows 2..14
+  // from y = 50 mm, slices 2..8 from z = 20 mm.
+  std::ifstream in(out, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(bytes.substr(0, 9), "typemerge");
+  EXPECT_NE(bytes.substr(0, 80).find("SPACE=LPS"), std::string::npos);
+  EXPECT_EQ(bytes.find("Canary"), std::string::npos);
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  for (std::uint32_t t = 0; t < count; ++t) {
+    for (int corner = 0; corner < 3; ++corner) {
+      float p[3];
+      std::memcpy(p, bytes.data() + 84 + 50 * t + 12 + 12 * corner, 12);
+      ASSERT_GT(p[0], -100 + 0.6 * 4);
+      ASSERT_LT(p[0], -100 + 0.6 * 16);
+      ASSERT_GT(p[1], 50 + 0.5 * 2);
+      ASSERT_LT(p[1], 50 + 0.5 * 14);
+      ASSERT_GT(p[2], 20 + 1.5 * 2);
+      ASSERT_LT(p[2], 20 + 1.5 * 8);
+    }
+  }
+}
+
+TEST(Cli, ConvertRefusesAnIsoValueWithNoSurface) {
+  const fs::path dir = write_ball_series("noiso");
+  const fs::path out = fresh_dir("noiso_out") / "none.stl";
+  const CommandRun r = run("convert " + dir.string() + " --iso 5000 -o " + out.string());
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("no surface"), std::string::npos) << r.out;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Cli, StatsRefusesANonMesh) {
+  const fs::path dir = fresh_dir("stats_bad");
+  std::ofstream(dir / "x.stl") << "not a mesh";
+  EXPECT_EQ(run("stats " + (dir / "x.stl").string()).exit_code, 1);
+}
+
+}  // namespace

@@ -303,6 +303,11 @@ std::vector<Case> cases() {
          l.rescale_intercept = 0;
          l.hu = [](int i, int, int) { return 100.0 * i; };
        }), {.slices = 6, .warning = "may not be Hounsfield"}});
+  add({"symlinks_not_followed", [](const fs::path& dir) {
+         write_series(dir, ct_writer::make_axial_series(small_layout()));
+         fs::create_directory_symlink(dir, dir / "loop");           // a cycle
+         fs::create_symlink(dir / "slice0.dcm", dir / "link.dcm");  // a second path to a file
+       }, {.slices = 6}});
   add({"single_slice", with_layout([](SeriesLayout& l) { l.slices = 1; }),
        {.loads = false, .refused = "single slice"}});
   return all;

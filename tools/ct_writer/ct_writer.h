@@ -150,7 +150,9 @@ struct CtSliceSpec {
 
   // Applied in this order after the fields above: `extra` puts (and overrides) attributes,
   // `omit` removes them (kPixelDataTag drops the pixels), then the file is cut to
-  // `truncate_to_bytes` if that is smaller than what was written.
+  // `truncate_to_bytes` if that is smaller than what was written. Both act on the data set
+  // only: the file meta header (group 0002) is always built from sop_class_uid,
+  // sop_instance_uid and transfer_syntax.
   std::vector<TagValue> extra;
   std::vector<Tag> omit;
   std::optional<std::uintmax_t> truncate_to_bytes;

@@ -1,0 +1,120 @@
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "core/mesh_checks.h"
+#include "io/atomic_file.h"
+#include "io/nrrd_writer.h"
+#include "io/stl_writer.h"
+
+namespace typemerge::io {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("typemerge_io_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+std::string read_all(const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// A closed, outward tetrahedron:  3
+//                                 |\   vertices 0..3 at the origin and the unit axes
+//                                 0-2
+//                                  \1
+core::TriangleMesh tetrahedron() {
+  core::TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+  mesh.triangles = {{0, 2, 1}, {0, 1, 3}, {0, 3, 2}, {1, 2, 3}};
+  return mesh;
+}
+
+TEST(Stl, BinaryLayoutHeaderAndRoundTrip) {
+  const fs::path file = fresh_dir("stl") / "tetra.stl";
+  write_binary_stl(tetrahedron(), file, stl_header("1.2.3", "LPS"));
+  const std::string bytes = read_all(file);
+  ASSERT_EQ(bytes.size(), 84u + 50u * 4u);
+  EXPECT_EQ(bytes.substr(0, 25), "typemerge 1.2.3 SPACE=LPS");
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  EXPECT_EQ(count, 4u);
+  float normal[3];
+  std::memcpy(normal, bytes.data() + 84, 12);  // first facet (0,2,1) faces −z
+  EXPECT_FLOAT_EQ(normal[2], -1.0f);
+
+  const core::TriangleMesh back = read_stl(file);
+  EXPECT_EQ(back.positions.size(), 4u);  // corners welded back into shared vertices
+  const core::MeshCheck check = core::check_mesh(back);
+  EXPECT_TRUE(check.closed_manifold());
+  EXPECT_NEAR(check.volume, 1.0 / 6.0, 1e-7);
+  EXPECT_EQ(check.euler_characteristic, 2);
+}
+
+TEST(Stl, ReadsAsciiAndRejectsGarbage) {
+  const fs::path dir = fresh_dir("ascii");
+  std::ofstream(dir / "a.stl") << "solid t\n facet normal 0 0 1\n  outer loop\n"
+                                  "   vertex 0 0 0\n   vertex 1 0 0\n   vertex 0 1.5 0\n"
+                                  "  endloop\n endfacet\nendsolid t\n";
+  const core::TriangleMesh mesh = read_stl(dir / "a.stl");
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  EXPECT_FLOAT_EQ(mesh.positions[2][1], 1.5f);
+  std::ofstream(dir / "b.stl") << "hello";
+  EXPECT_THROW(read_stl(dir / "b.stl"), std::runtime_error);
+}
+
+TEST(AtomicFile, NothingAppearsUntilCommitAndNothingStaysOnAbort) {
+  const fs::path dir = fresh_dir("atomic");
+  std::ofstream(dir / "out.bin") << "previous";
+  {
+    AtomicFile file(dir / "out.bin");
+    file.write("new content");
+    EXPECT_EQ(read_all(dir / "out.bin"), "previous");  // the old file is intact meanwhile
+  }  // destroyed without commit: as if the run had failed
+  EXPECT_EQ(read_all(dir / "out.bin"), "previous");
+  const auto entries = std::distance(fs::directory_iterator(dir), fs::directory_iterator());
+  EXPECT_EQ(entries, 1);  // no temporary left behind
+
+  AtomicFile file(dir / "out.bin");
+  file.write("new content");
+  file.commit();
+  EXPECT_EQ(read_all(dir / "out.bin"), "new content");
+  EXPECT_THROW(AtomicFile(dir / "missing_folder" / "x"), std::runtime_error);
+}
+
+TEST(Nrrd, HeaderCarriesTheShearedGeometryAndSamplesFollow) {
+  core::IndexToPatient geometry;
+  geometry.origin = {1.5, -2, 3};
+  geometry.axes = {{{0.5, 0, 0}, {0, 0.5, 0}, {0, 1.25, 4}}};  // a tilted slice step
+  core::Volume volume({2, 3, 4}, geometry);
+  for (std::size_t v = 0; v < volume.samples().size(); ++v) {
+    volume.samples()[v] = static_cast<float>(v) - 10.25f;
+  }
+  const fs::path dir = fresh_dir("nrrd");
+  write_nrrd(volume, dir / "f.nrrd", NrrdSampleType::float32);
+  write_nrrd(volume, dir / "i.nrrd", NrrdSampleType::int16);
+  const std::string f = read_all(dir / "f.nrrd");
+  const std::size_t end = f.find("\n\n");
+  ASSERT_NE(end, std::string::npos);
+  EXPECT_NE(f.find("space directions: (0.5,0,0) (0,0.5,0) (0,1.25,4)"), std::string::npos);
+  EXPECT_NE(f.find("space origin: (1.5,-2,3)"), std::string::npos);
+  EXPECT_NE(f.find("sizes: 2 3 4"), std::string::npos);
+  ASSERT_EQ(f.size() - end - 2, 24u * 4u);
+  float last = 0;
+  std::memcpy(&last, f.data() + f.size() - 4, 4);
+  EXPECT_FLOAT_EQ(last, 23 - 10.25f);
+  const std::string i = read_all(dir / "i.nrrd");
+  std::int16_t first = 0;
+  std::memcpy(&first, i.data() + i.find("\n\n") + 2, 2);
+  EXPECT_EQ(first, -10);  // rounded to the nearest HU
+}
+
+}  // namespace
+}  // namespace typemerge::io
