@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <map>
 
+#include <tbb/parallel_for.h>
+
 #include "dicom/pixel_reader.h"
 
 namespace typemerge::dicom {
@@ -17,7 +19,22 @@ void decode_stack(const SeriesInfo& series, float* stack, std::size_t slice_voxe
   for (std::size_t k = 0; k < series.slices.size(); ++k) {
     by_file[series.slices[k].path].push_back({&series.slices[k], stack + k * slice_voxels});
   }
-  for (const auto& [path, targets] : by_file) read_frames_hu(targets);
+  // Files are independent and each writes its own slices, so they decode in parallel; DCMTK's
+  // decoders keep no shared state once registered. The first error (in file order) is thrown,
+  // so the message does not depend on scheduling.
+  std::vector<const std::vector<FrameTarget>*> files;
+  for (const auto& entry : by_file) files.push_back(&entry.second);
+  std::vector<std::string> errors(files.size());
+  tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t f) {
+    try {
+      read_frames_hu(*files[f]);
+    } catch (const PixelError& error) {
+      errors[f] = error.what();
+    }
+  });
+  for (const std::string& error : errors) {
+    if (!error.empty()) throw PixelError(error);
+  }
 }
 
 // Linear resampling along the slice line onto the uniform grid the geometry chose.

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <tuple>
 
+#include <tbb/parallel_for.h>
+
 namespace typemerge::dicom {
 namespace {
 
@@ -208,8 +210,14 @@ FolderScan scan_folder(const fs::path& root, const ScanOptions& options) {
 
   std::vector<SliceHeader> frames;
   std::map<std::string, std::vector<std::string>> warnings_by_series;
-  for (const fs::path& file : files) {
-    HeaderReadResult read = read_headers(file, options.header);
+  // Headers are read in parallel (each file on its own), then merged in file order so the
+  // result does not depend on scheduling.
+  std::vector<HeaderReadResult> reads(files.size());
+  tbb::parallel_for(std::size_t{0}, files.size(),
+                    [&](std::size_t f) { reads[f] = read_headers(files[f], options.header); });
+  for (std::size_t f = 0; f < files.size(); ++f) {
+    const fs::path& file = files[f];
+    HeaderReadResult& read = reads[f];
     const fs::path relative =
         fs::is_directory(root, error) ? file.lexically_relative(root) : file.filename();
     if (!read.skip_reason.empty()) {

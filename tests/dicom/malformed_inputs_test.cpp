@@ -6,6 +6,7 @@
 #include <cmath>
 #include <fstream>
 #include <functional>
+#include <ostream>
 
 #include "ct_writer/ct_writer.h"
 #include "dicom/pixel_reader.h"
@@ -50,6 +51,9 @@ struct Case {
   std::function<void(ScanOptions&)> options = nullptr;
   std::function<void(const LoadedSeries&)> check = nullptr;
 };
+
+// Failure messages name the case instead of dumping its bytes.
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
 
 void write_series(const fs::path& dir, std::vector<CtSliceSpec> specs,
                   const std::function<void(std::size_t, CtSliceSpec&)>& edit = nullptr) {

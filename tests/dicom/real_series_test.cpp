@@ -76,6 +76,8 @@ struct Case {
   double sx, sy, sz;
 };
 
+void PrintTo(const Case& c, std::ostream* os) { *os << c.folder; }
+
 class RealSeries : public ::testing::TestWithParam<Case> {};
 
 TEST_P(RealSeries, MatchesDcm2niix) {
