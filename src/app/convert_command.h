@@ -1,8 +1,10 @@
-// `typemerge convert DIR --iso HU -o out.stl [--algorithm tm|mc|classic]`: one surface.
+// `typemerge convert DIR (--preset NAME | --iso HU | --window LO,HI) -o out.stl`: one surface.
 #pragma once
 
 #include <iosfwd>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "app/input_options.h"
 
@@ -12,9 +14,12 @@ struct ConvertOptions {
   InputOptions input;
   std::string series_id;
   std::string output;
-  double iso = 0;
+  std::optional<double> iso;
+  std::string preset;
+  std::vector<double> window;  // lo, hi
   std::string algorithm = "mc";
   bool open_borders = false;
+  std::string preview;
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);

@@ -6,6 +6,7 @@
 #include "app/convert_command.h"
 #include "app/exit_codes.h"
 #include "app/info_command.h"
+#include "app/presets_command.h"
 #include "app/stats_command.h"
 #include "app/volume_command.h"
 #include "app/version.h"
@@ -23,6 +24,7 @@ int main(int argc, char** argv) {
   add_volume_command(app, volume);
   add_convert_command(app, convert);
   add_stats_command(app, stats);
+  add_presets_command(app);
 
   try {
     app.parse(argc, argv);
@@ -40,6 +42,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("volume")) return run_volume(volume, std::cerr);
     if (app.got_subcommand("convert")) return run_convert(convert, std::cerr);
     if (app.got_subcommand("stats")) return run_stats(stats, std::cout);
+    if (app.got_subcommand("presets")) return run_presets(std::cout);
   } catch (const CommandError& error) {
     std::cerr << "typemerge: " << error.message << "\n";
     return error.exit_code;

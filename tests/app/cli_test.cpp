@@ -222,3 +222,56 @@ TEST(Cli, StatsRefusesANonMesh) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Cli, PresetsAreListed) {
+  const CommandRun r = run("presets");
+  ASSERT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.out.find("bone"), std::string::npos);
+  EXPECT_NE(r.out.find("226"), std::string::npos);
+  EXPECT_NE(r.out.find("skin"), std::string::npos);
+  EXPECT_NE(r.out.find("-718"), std::string::npos);
+}
+
+TEST(Cli, PresetWindowAndPreview) {
+  const fs::path dir = write_ball_series("preset");
+  const fs::path out = fresh_dir("preset_out");
+  const CommandRun bone = run("convert " + dir.string() + " --preset bone -o " +
+                              (out / "bone.stl").string() + " --preview " +
+                              (out / "bone.png").string());
+  ASSERT_EQ(bone.exit_code, 0) << bone.out;
+  std::ifstream png(out / "bone.png", std::ios::binary);
+  std::string signature(8, '\0');
+  png.read(signature.data(), 8);
+  EXPECT_EQ(signature, "\x89PNG\r\n\x1a\n");
+  EXPECT_GT(fs::file_size(out / "bone.png"), 1000u);
+  // The ball (1000 HU) lies inside the window 500..1500; nothing lies inside teeth's window.
+  EXPECT_EQ(run("convert " + dir.string() + " --window 500,1500 -o " + (out / "w.stl").string())
+                .exit_code, 0);
+  const CommandRun teeth = run("convert " + dir.string() + " --preset teeth -o " +
+                               (out / "teeth.stl").string());
+  EXPECT_EQ(teeth.exit_code, 1);
+  EXPECT_NE(teeth.out.find("absent"), std::string::npos) << teeth.out;
+  EXPECT_FALSE(fs::exists(out / "teeth.stl"));
+  EXPECT_EQ(run("convert " + dir.string() + " --preset bone --iso 3 -o x.stl").exit_code, 2);
+  EXPECT_EQ(run("convert " + dir.string() + " --preset nonsense -o x.stl").exit_code, 2);
+  EXPECT_EQ(run("convert " + dir.string() + " -o x.stl").exit_code, 2);
+}
+
+TEST(Cli, PresetRefusesDataThatIsNotHounsfield) {
+  const fs::path dir = fresh_dir("not_hu");
+  typemerge::ct_writer::SeriesLayout layout;
+  layout.uid_seed = "not_hu";
+  layout.rescale_intercept = 0;
+  layout.hu = [](int i, int, int) { return i < 8 ? 0.0 : 2000.0; };  // air stored as 0
+  for (const auto& spec : typemerge::ct_writer::make_axial_series(layout)) {
+    typemerge::ct_writer::write_ct_slice(spec, dir / (spec.instance_number + ".dcm"));
+  }
+  const CommandRun r = run("convert " + dir.string() + " --preset bone -o " +
+                           (fresh_dir("not_hu_out") / "b.stl").string());
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("Hounsfield"), std::string::npos) << r.out;
+}
+
+}  // namespace

@@ -1,0 +1,20 @@
+// window_field: turns "voxels whose value lies in [lo, hi]" into an isosurface problem.
+//
+// f = min(v − lo, hi − v) is ≥ 0 exactly inside the window and, along a cube edge that crosses
+// only one bound, linear in v, so marching cubes at iso 0 on f places vertices where the
+// original data crosses lo or hi — the same positions as extracting v = lo or v = hi. When
+// `hi` is at or above the data's maximum the result equals extracting v ≥ lo directly.
+// Memory: one more volume of floats (the caller may drop the original afterwards).
+#pragma once
+
+#include "core/volume.h"
+
+namespace typemerge::core {
+
+// Precondition: lo <= hi.
+Volume window_field(const Volume& volume, float lo, float hi);
+
+// Voxels inside [lo, hi], for "is this tissue present at all" checks.
+std::int64_t count_in_window(const Volume& volume, float lo, float hi);
+
+}  // namespace typemerge::core

@@ -1,0 +1,117 @@
+#include "io/preview_png.h"
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <vector>
+
+#include "io/atomic_file.h"
+
+namespace typemerge::io {
+namespace {
+
+using Point = std::array<double, 3>;
+
+// One view: which patient axes map to image right, image up and depth (towards the viewer).
+struct View {
+  int right_axis;
+  double right_sign;
+  int up_axis;
+  int depth_axis;
+  double depth_sign;  // the viewer sits at −depth_sign·∞ on depth_axis
+};
+
+// Anterior: viewer at −y (anterior), looking along +y; right = +x (patient left), up = +z.
+// Left lateral: viewer at +x (patient left), looking along −x; right = −y (anterior), up = +z.
+constexpr View kAnterior{0, 1.0, 2, 1, 1.0};
+constexpr View kLeftLateral{1, -1.0, 2, 0, -1.0};
+
+void render(const core::TriangleMesh& mesh, const View& view, const std::array<Point, 2>& box,
+            int size, cv::Mat& image, int x_offset) {
+  const double width = box[1][view.right_axis] - box[0][view.right_axis];
+  const double height = box[1][view.up_axis] - box[0][view.up_axis];
+  const double scale = 0.92 * size / std::max({width, height, 1e-9});
+  const double cx = 0.5 * (box[0][view.right_axis] + box[1][view.right_axis]);
+  const double cy = 0.5 * (box[0][view.up_axis] + box[1][view.up_axis]);
+  auto project = [&](const std::array<float, 3>& p) {
+    return Point{size / 2.0 + view.right_sign * (p[view.right_axis] - cx) * scale,
+                 size / 2.0 - (p[view.up_axis] - cy) * scale,
+                 view.depth_sign * p[view.depth_axis]};  // smaller is nearer
+  };
+  std::vector<double> depth(static_cast<std::size_t>(size) * size,
+                            std::numeric_limits<double>::infinity());
+  for (const auto& t : mesh.triangles) {
+    const Point a = project(mesh.positions[t[0]]);
+    const Point b = project(mesh.positions[t[1]]);
+    const Point c = project(mesh.positions[t[2]]);
+    // Shade by the facet normal in patient space against a light from the viewer and above.
+    const auto& pa = mesh.positions[t[0]];
+    const auto& pb = mesh.positions[t[1]];
+    const auto& pc = mesh.positions[t[2]];
+    const Point u{double(pb[0]) - pa[0], double(pb[1]) - pa[1], double(pb[2]) - pa[2]};
+    const Point v{double(pc[0]) - pa[0], double(pc[1]) - pa[1], double(pc[2]) - pa[2]};
+    Point n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (length == 0) continue;
+    for (double& x : n) x /= length;
+    Point light{0, 0, 0.5};
+    light[view.depth_axis] = -view.depth_sign;  // towards the viewer
+    const double light_length = std::sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2]);
+    const double lambert = (n[0] * light[0] + n[1] * light[1] + n[2] * light[2]) / light_length;
+    const double shade = 0.15 + 0.85 * std::max(0.0, lambert);
+
+    const double area = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+    if (area == 0) continue;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a[0], b[0], c[0]}))));
+    const int x1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({a[0], b[0], c[0]}))));
+    const int y0 = std::max(0, static_cast<int>(std::floor(std::min({a[1], b[1], c[1]}))));
+    const int y1 = std::min(size - 1, static_cast<int>(std::ceil(std::max({a[1], b[1], c[1]}))));
+    for (int y = y0; y <= y1; ++y) {
+      for (int x = x0; x <= x1; ++x) {
+        const double px = x + 0.5, py = y + 0.5;
+        const double w0 = ((b[0] - px) * (c[1] - py) - (b[1] - py) * (c[0] - px)) / area;
+        const double w1 = ((c[0] - px) * (a[1] - py) - (c[1] - py) * (a[0] - px)) / area;
+        const double w2 = 1 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const double z = w0 * a[2] + w1 * b[2] + w2 * c[2];
+        double& stored = depth[static_cast<std::size_t>(y) * size + x];
+        if (z >= stored) continue;
+        stored = z;
+        const auto grey = static_cast<unsigned char>(std::clamp(shade * 235.0, 0.0, 255.0));
+        image.at<cv::Vec3b>(y, x + x_offset) =
+            cv::Vec3b(static_cast<unsigned char>(grey * 0.85), static_cast<unsigned char>(grey * 0.95), grey);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void write_preview_png(const core::TriangleMesh& mesh, const std::filesystem::path& path,
+                       const PreviewOptions& options) {
+  const int size = options.view_pixels;
+  cv::Mat image(size, 2 * size, CV_8UC3, cv::Scalar(48, 40, 32));
+  std::array<Point, 2> box{Point{1e300, 1e300, 1e300}, Point{-1e300, -1e300, -1e300}};
+  for (const auto& p : mesh.positions) {
+    for (int c = 0; c < 3; ++c) {
+      box[0][c] = std::min(box[0][c], double(p[c]));
+      box[1][c] = std::max(box[1][c], double(p[c]));
+    }
+  }
+  if (!mesh.positions.empty()) {
+    render(mesh, kAnterior, box, size, image, 0);
+    render(mesh, kLeftLateral, box, size, image, size);
+  }
+  std::vector<unsigned char> png;
+  if (!cv::imencode(".png", image, png)) throw std::runtime_error("PNG encoding failed");
+  AtomicFile file(path);
+  file.write(png.data(), png.size());
+  file.commit();
+}
+
+}  // namespace typemerge::io
