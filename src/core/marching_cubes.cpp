@@ -104,6 +104,7 @@ class Extractor {
 
   TriangleMesh run() {
     if (options_.stats != nullptr) *options_.stats = {};
+    if (options_.cubes != nullptr) options_.cubes->clear();
     if (volume_.size().voxels() == 0 || width_ < 2 || height_ < 2 || depth_ < 2) return {};
     const std::size_t n = static_cast<std::size_t>(width_ * height_);
     Slice lower;
@@ -118,7 +119,7 @@ class Extractor {
       load_slice(layer + 1, upper);
       add_slice_vertices(layer + 1, upper);
       add_layer_vertices(layer, lower, upper);
-      add_cubes(lower, upper);
+      add_cubes(layer, lower, upper);
       std::swap(lower, upper);
     }
     if (options_.stats != nullptr) *options_.stats = stats_;
@@ -184,7 +185,7 @@ class Extractor {
   }
 
   // Pass 3: the boundary cubes of the layer between the two slices.
-  void add_cubes(const Slice& lower, const Slice& upper) {
+  void add_cubes(Index layer, const Slice& lower, const Slice& upper) {
     const std::uint8_t* lower_square = lower.square.data();
     const std::uint8_t* upper_square = upper.square.data();
     const std::array<const VertexId*, 5> ids = {lower.x_vertex.data(), lower.y_vertex.data(),
@@ -195,6 +196,13 @@ class Extractor {
         const Index i = x + width_ * y;
         const unsigned c = static_cast<unsigned>(lower_square[i] | upper_square[i] << 4);
         if (c == 0 || c == 255) continue;
+        if (options_.cubes != nullptr) {
+          options_.cubes->push_back({static_cast<std::int32_t>(x - pad_),
+                                     static_cast<std::int32_t>(y - pad_),
+                                     static_cast<std::int32_t>(layer - pad_),
+                                     static_cast<std::uint8_t>(c),
+                                     static_cast<std::uint32_t>(mesh_.triangles.size())});
+        }
         add_cube(c, i, ids, lower, upper);
       }
     }

@@ -16,6 +16,8 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "core/mesh.h"
 #include "core/volume.h"
@@ -31,6 +33,17 @@ struct AmbiguityStats {
   std::size_t joined_faces = 0;
   // Loops that needed an extra centre vertex (no fan apex avoids the cube faces).
   std::size_t centroid_vertices = 0;
+};
+
+// One boundary cube as the extractor triangulated it, for post-processing that needs the
+// lattice structure (type merging). Cube (x, y, z) spans [x, x+1] × [y, y+1] × [z, z+1] in
+// voxel index space; with close_borders it may start at −1 or at the last sample (the caps).
+struct BoundaryCube {
+  std::int32_t x = 0;
+  std::int32_t y = 0;
+  std::int32_t z = 0;
+  std::uint8_t index = 0;            // cube index, bit i = vertex vi inside
+  std::uint32_t first_triangle = 0;  // its triangles run up to the next cube's first_triangle
 };
 
 struct ExtractOptions {
@@ -49,6 +62,9 @@ struct ExtractOptions {
   Mode mode = Mode::consistent;
   // When not null, filled with the statistics of this extraction.
   AmbiguityStats* stats = nullptr;
+  // When not null, receives every boundary cube in scan order (z, then y, then x), with the
+  // range of mesh triangles it produced. Costs 20 bytes per boundary cube.
+  std::vector<BoundaryCube>* cubes = nullptr;
 };
 
 // Smallest distance, as a fraction of the edge, between a surface vertex and a sample.

@@ -1,0 +1,774 @@
+// merge_types: the merge procedure of type-merging-spec.md §4.1–4.5 on the indexed MC mesh.
+//
+// Recipe (merge_types at the bottom):
+//   1. index the lattice: boundary-cube records (from the extractor, already in scan order)
+//      get a row table so C + d is found by a binary search in one short row;
+//   2. build vertex → triangle incidence as CSR (two passes over the triangles);
+//   3. merge, cubes in scan order (z, y, x): pick a direction (D2, D3, FLAG of §4.1), then
+//      collapse each moving pair of C + d (D1) with the checks of §4.5, and remove the
+//      slivers the merge made (D6) — all in one transaction that is undone if any step fails;
+//   4. a final sliver pass (finds none on every test surface; kept as a guard); 5. compact.
+//
+// Mesh state during merging: triangles keep their original vertex ids; a union-find `parent_`
+// maps an id to the vertex that absorbed it (a half-edge collapse a → b is parent[a] = b), and
+// `next_member_` links every class into a ring, so a vertex's current fan is the live
+// triangles incident to any member and the original MC vertices it absorbed are the members.
+// Classes are small (a run of at most run_cap vertices per direction), rings are spliced in
+// O(1), and nothing is allocated per vertex or per collapse: fans and links live in
+// fixed-size stack buffers (a larger fan is rejected, which only costs reduction).
+#include "core/type_merging.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <utility>
+#include <vector>
+
+#include "core/cube_tables.h"
+
+namespace typemerge::core {
+
+namespace {
+
+using P3 = std::array<double, 3>;
+
+P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot3(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+P3 cross3(const P3& a, const P3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+}  // namespace
+
+namespace detail {
+
+namespace {
+
+double point_segment_distance_squared(const P3& p, const P3& a, const P3& b) {
+  const P3 ab = sub(b, a);
+  const P3 ap = sub(p, a);
+  const double len2 = dot3(ab, ab);
+  double t = len2 > 0.0 ? dot3(ap, ab) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const P3 q = {a[0] + t * ab[0] - p[0], a[1] + t * ab[1] - p[1], a[2] + t * ab[2] - p[2]};
+  return dot3(q, q);
+}
+
+}  // namespace
+
+double point_triangle_distance_squared(const P3& p, const P3& a, const P3& b, const P3& c) {
+  const P3 ab = sub(b, a);
+  const P3 ac = sub(c, a);
+  const P3 n = cross3(ab, ac);
+  const double n2 = dot3(n, n);
+  const double scale = std::max({dot3(ab, ab), dot3(ac, ac), 1e-300});
+  if (n2 <= 1e-24 * scale * scale) {
+    // Degenerate: the triangle is (at most) its three edges.
+    return std::min({point_segment_distance_squared(p, a, b),
+                     point_segment_distance_squared(p, b, c),
+                     point_segment_distance_squared(p, c, a)});
+  }
+  // Inside the prism over the triangle: distance to the plane; else to the nearest edge.
+  const P3 ap = sub(p, a);
+  const P3 bp = sub(p, b);
+  const P3 cp = sub(p, c);
+  const double wa = dot3(cross3(sub(c, b), bp), n);
+  const double wb = dot3(cross3(sub(a, c), cp), n);
+  const double wc = dot3(cross3(ab, ap), n);
+  if (wa >= 0.0 && wb >= 0.0 && wc >= 0.0) {
+    const double h = dot3(ap, n);
+    return h * h / n2;
+  }
+  return std::min({point_segment_distance_squared(p, a, b),
+                   point_segment_distance_squared(p, b, c),
+                   point_segment_distance_squared(p, c, a)});
+}
+
+}  // namespace detail
+
+namespace {
+
+using VertexId = std::uint32_t;
+using TriangleId = std::uint32_t;
+
+constexpr VertexId kNoVertex = std::numeric_limits<VertexId>::max();
+
+// Largest fan (triangles around one vertex) and link the checks handle; MC fans have at most
+// ~12 triangles, merged vertices a few times that.
+constexpr int kMaxFan = 96;
+
+// A triangle is a sliver when its height over the longest edge is below this fraction of that
+// edge: collinear up to float rounding of positions that are exactly collinear in theory.
+constexpr double kSliverRatio = 1e-5;
+
+// Position of each cube edge's vertex in the cube's triangle list, slot = 3·triangle + corner,
+// for the configurations that can merge (types 0–2: MC cases 1, 2, 5, 8, 9, never ambiguous,
+// never with a centre vertex, so their triangulation is the single table entry). 0xFF = the
+// edge is not cut. Derived from the case tables at compile time.
+struct EdgeSlots {
+  std::array<std::array<std::uint8_t, kCubeEdgeCount>, 256> slot{};
+};
+
+constexpr EdgeSlots build_edge_slots() {
+  EdgeSlots table{};
+  for (unsigned c = 0; c < 256; ++c) {
+    for (auto& s : table.slot[c]) s = 0xFF;
+    if (type_of(c).type == CubeType::kNone) continue;
+    const CubeCase& cube_case = kConsistentCases.cases[kConsistentCases.first[c]];
+    for (int t = cube_case.triangle_count - 1; t >= 0; --t) {
+      for (int k = 0; k < 3; ++k) {
+        table.slot[c][cube_case.triangles[t][k]] = static_cast<std::uint8_t>(3 * t + k);
+      }
+    }
+  }
+  return table;
+}
+
+constexpr EdgeSlots kEdgeSlots = build_edge_slots();
+
+constexpr bool mergeable_cubes_are_plain() {
+  for (unsigned c = 0; c < 256; ++c) {
+    if (type_of(c).type == CubeType::kNone) continue;
+    if (kCubeAmbiguousFaces[c] != 0) return false;  // D11: ambiguous cubes never merge
+    if (kConsistentCases.cases[kConsistentCases.first[c]].centroid_count != 0) return false;
+    for (int e = 0; e < kCubeEdgeCount; ++e) {
+      const bool cut = ((kCubeCutEdges[c] >> e) & 1u) != 0;
+      if (cut != (kEdgeSlots.slot[c][e] != 0xFF)) return false;
+    }
+  }
+  return true;
+}
+static_assert(mergeable_cubes_are_plain());
+
+// A small set of vertex ids in a fixed buffer (fans and links are short; linear search beats
+// any hashing at these sizes). Buffers are left uninitialised on purpose: entries are written
+// before they are read, and clearing a few hundred bytes per collapse is wasted work.
+template <int N>
+struct SmallSet {
+  std::array<VertexId, N> items;
+  int size = 0;
+  bool overflow = false;
+
+  bool contains(VertexId v) const {
+    for (int i = 0; i < size; ++i) {
+      if (items[i] == v) return true;
+    }
+    return false;
+  }
+  void insert(VertexId v) {
+    if (contains(v)) return;
+    if (size == N) {
+      overflow = true;
+      return;
+    }
+    items[size++] = v;
+  }
+};
+
+struct Fan {
+  std::array<TriangleId, kMaxFan> triangles;
+  int size = 0;
+  bool overflow = false;
+};
+
+class Merger {
+ public:
+  Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
+         const MergeOptions& options, MergeStats& stats)
+      : mesh_(mesh), cubes_(cubes), options_(options), stats_(stats) {
+    const double deg = std::numbers::pi / 180.0;
+    cos_normal_change_ = std::cos(options.max_normal_change_deg * deg);
+    cos_normal_gradient_ = std::cos(options.max_normal_to_gradient_deg * deg);
+    epsilon2_ = options.epsilon_voxels * options.epsilon_voxels;
+  }
+
+  void run() {
+    build_incidence();
+    build_rows();
+    merge_cubes();
+    if (options_.remove_slivers) remove_slivers();
+  }
+
+  // Compacted output: surviving vertices in original order, live triangles in original order.
+  TriangleMesh result() {
+    TriangleMesh out;
+    const std::size_t n = mesh_.positions.size();
+    std::vector<VertexId> new_id(n, kNoVertex);
+    for (TriangleId t = 0; t < alive_.size(); ++t) {
+      if (alive_[t] == 0) continue;
+      for (VertexId v : current(t)) new_id[v] = 0;
+    }
+    VertexId next = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (new_id[v] == kNoVertex) continue;
+      new_id[v] = next++;
+      out.positions.push_back(mesh_.positions[v]);
+      out.normals.push_back(mesh_.normals[v]);
+    }
+    for (TriangleId t = 0; t < alive_.size(); ++t) {
+      if (alive_[t] == 0) continue;
+      const auto c = current(t);
+      out.triangles.push_back({new_id[c[0]], new_id[c[1]], new_id[c[2]]});
+    }
+    return out;
+  }
+
+ private:
+  // ---- Mesh state ------------------------------------------------------------------------
+
+  void build_incidence() {
+    const std::size_t n = mesh_.positions.size();
+    const std::size_t m = mesh_.triangles.size();
+    parent_.resize(n);
+    next_member_.resize(n);
+    for (VertexId v = 0; v < n; ++v) parent_[v] = next_member_[v] = v;
+    alive_.assign(m, 1);
+    // CSR: count, prefix sum, fill (flying-edges style exact allocation).
+    offset_.assign(n + 1, 0);
+    for (const auto& tri : mesh_.triangles) {
+      for (VertexId v : tri) ++offset_[v + 1];
+    }
+    for (std::size_t v = 0; v < n; ++v) offset_[v + 1] += offset_[v];
+    incident_.resize(offset_[n]);
+    std::vector<std::uint32_t> fill(offset_.begin(), offset_.end() - 1);
+    for (TriangleId t = 0; t < m; ++t) {
+      for (VertexId v : mesh_.triangles[t]) incident_[fill[v]++] = t;
+    }
+  }
+
+  // Path compression only outside a merge transaction: a rollback resets parent[a] = a, which
+  // would strand members that compression had pointed past a.
+  VertexId find(VertexId v) {
+    VertexId root = v;
+    while (parent_[root] != root) root = parent_[root];
+    if (!in_transaction_) {
+      while (parent_[v] != root) v = std::exchange(parent_[v], root);
+    }
+    return root;
+  }
+
+  std::array<VertexId, 3> current(TriangleId t) {
+    const auto& tri = mesh_.triangles[t];
+    return {find(tri[0]), find(tri[1]), find(tri[2])};
+  }
+
+  P3 position(VertexId v) const {
+    const auto& p = mesh_.positions[v];
+    return {p[0], p[1], p[2]};
+  }
+  P3 normal(VertexId v) const {
+    const auto& p = mesh_.normals[v];
+    return {p[0], p[1], p[2]};
+  }
+
+  // Live triangles around representative r: those incident to any member of its class (each
+  // appears once: a live triangle has one vertex per class).
+  void gather_fan(VertexId r, Fan& fan) const {
+    fan.size = 0;
+    fan.overflow = false;
+    VertexId m = r;
+    do {
+      for (std::uint32_t i = offset_[m]; i < offset_[m + 1]; ++i) {
+        const TriangleId t = incident_[i];
+        if (alive_[t] == 0) continue;
+        if (fan.size == kMaxFan) {
+          fan.overflow = true;
+          return;
+        }
+        fan.triangles[fan.size++] = t;
+      }
+      m = next_member_[m];
+    } while (m != r);
+  }
+
+  // ---- The checked half-edge collapse (spec §4.5 tryCollapse) -----------------------------
+
+  static bool is_sliver(const P3& p0, const P3& p1, const P3& p2, P3* n) {
+    const P3 e0 = sub(p1, p0);
+    const P3 e1 = sub(p2, p0);
+    const P3 e2 = sub(p2, p1);
+    *n = cross3(e0, e1);
+    const double longest2 = std::max({dot3(e0, e0), dot3(e1, e1), dot3(e2, e2)});
+    // |n| = 2·area = height·longest; sliver when height <= kSliverRatio·longest.
+    return dot3(*n, *n) <= kSliverRatio * kSliverRatio * longest2 * longest2;
+  }
+
+  // Distance test with a cheap exit: the distance to the triangle is at least the distance
+  // to its plane (most candidate triangles are rejected by that alone).
+  bool within_epsilon(const P3& p, const P3& a, const P3& b, const P3& c) const {
+    const P3 n = cross3(sub(b, a), sub(c, a));
+    const double n2 = dot3(n, n);
+    const double h = dot3(sub(p, a), n);
+    if (h * h > epsilon2_ * n2 && n2 > 0.0) return false;
+    return detail::point_triangle_distance_squared(p, a, b, c) <= epsilon2_;
+  }
+
+  // Would every member of class r (the MC vertices it absorbed) stay within epsilon of the
+  // fan `fan` of r after a → b? The fan's triangles are mapped a → b; those with both die.
+  bool class_within_epsilon(VertexId r, const Fan& fan, VertexId a, VertexId b) {
+    VertexId m = r;
+    do {
+      // r itself is a corner of every triangle of its fan, unless r is a, which moves.
+      if (m != r || r == a) {
+        const P3 p = position(m);
+        bool near = false;
+        for (int i = 0; i < fan.size && !near; ++i) {
+          auto c = current(fan.triangles[i]);
+          bool has_a = false;
+          bool has_b = false;
+          for (VertexId& v : c) {
+            has_a = has_a || v == a;
+            has_b = has_b || v == b;
+            if (v == a) v = b;
+          }
+          if (has_a && has_b) continue;
+          near = within_epsilon(p, position(c[0]), position(c[1]), position(c[2]));
+        }
+        if (!near) return false;
+      }
+      m = next_member_[m];
+    } while (m != r);
+    return true;
+  }
+
+  bool try_collapse(VertexId a_in, VertexId b_in) {
+    const VertexId a = find(a_in);
+    const VertexId b = find(b_in);
+    if (a == b) return true;
+    ++stats_.collapses_tried;
+
+    Fan fan_a;
+    gather_fan(a, fan_a);
+    if (fan_a.overflow) return reject(stats_.rejected_fan_size);
+
+    // Link of a, boundary test and the edge (a, b). In a closed fan every neighbour follows a
+    // once and precedes it once; a neighbour seen only one way marks a boundary edge.
+    SmallSet<2 * kMaxFan> link_a;
+    SmallSet<4> opposite;
+    std::array<int, 2 * kMaxFan> balance;
+    int edge_ab = 0;
+    for (int i = 0; i < fan_a.size; ++i) {
+      const auto c = current(fan_a.triangles[i]);
+      const int k = c[0] == a ? 0 : c[1] == a ? 1 : 2;
+      const VertexId next = c[(k + 1) % 3];
+      const VertexId prev = c[(k + 2) % 3];
+      for (VertexId v : {next, prev}) {
+        const int before = link_a.size;
+        link_a.insert(v);
+        if (link_a.size > before) balance[static_cast<std::size_t>(before)] = 0;
+      }
+      for (int j = 0; j < link_a.size; ++j) {
+        if (link_a.items[j] == next) ++balance[static_cast<std::size_t>(j)];
+        if (link_a.items[j] == prev) --balance[static_cast<std::size_t>(j)];
+      }
+      if (next == b || prev == b) {
+        ++edge_ab;
+        opposite.insert(next == b ? prev : next);
+      }
+    }
+    if (link_a.overflow) return reject(stats_.rejected_fan_size);
+    for (int j = 0; j < link_a.size; ++j) {
+      if (balance[static_cast<std::size_t>(j)] != 0) return reject(stats_.rejected_boundary);
+    }
+    if (edge_ab != 2 || opposite.size != 2) return reject(stats_.rejected_link);
+
+    Fan fan_b;
+    gather_fan(b, fan_b);
+    if (fan_b.overflow) return reject(stats_.rejected_fan_size);
+    SmallSet<2 * kMaxFan> link_b;
+    for (int i = 0; i < fan_b.size; ++i) {
+      for (VertexId v : current(fan_b.triangles[i])) {
+        if (v != b) link_b.insert(v);
+      }
+    }
+    if (link_b.overflow) return reject(stats_.rejected_fan_size);
+    // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
+    // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
+    int common = 0;
+    for (int j = 0; j < link_a.size; ++j) {
+      const VertexId v = link_a.items[j];
+      if (v == b || !link_b.contains(v)) continue;
+      if (!opposite.contains(v)) return reject(stats_.rejected_link);
+      ++common;
+    }
+    if (common != 2) return reject(stats_.rejected_link);
+    if (link_a.size == 3 && link_b.size == 3) return reject(stats_.rejected_link);
+
+    // Fold-over: every triangle of a that survives keeps its orientation within the limits.
+    const P3 pb = position(b);
+    for (int i = 0; i < fan_a.size; ++i) {
+      const auto c = current(fan_a.triangles[i]);
+      if (c[0] == b || c[1] == b || c[2] == b) continue;
+      P3 q[3];
+      P3 ref{0, 0, 0};
+      for (int k = 0; k < 3; ++k) {
+        q[k] = c[k] == a ? pb : position(c[k]);
+        const P3 nk = normal(c[k] == a ? b : c[k]);
+        for (int x = 0; x < 3; ++x) ref[x] += nk[x];
+      }
+      P3 n0;
+      P3 n1;
+      const bool sliver0 = is_sliver(position(c[0]), position(c[1]), position(c[2]), &n0);
+      const bool sliver1 = is_sliver(q[0], q[1], q[2], &n1);
+      // Slivers (collinear vertices, typical on flat data) have no reliable normal: they are
+      // allowed here and removed by the clean-up; rotations and flips of real triangles are not.
+      if (!sliver0 && !sliver1 &&
+          dot3(n0, n1) < cos_normal_change_ * std::sqrt(dot3(n0, n0) * dot3(n1, n1))) {
+        return reject(stats_.rejected_normal);
+      }
+      const double ref2 = dot3(ref, ref);
+      if (!sliver1 && ref2 > 0.0 &&
+          dot3(n1, ref) < cos_normal_gradient_ * std::sqrt(dot3(n1, n1) * ref2)) {
+        return reject(stats_.rejected_gradient);
+      }
+    }
+
+    // Distance (D7): the MC vertices absorbed by a and by b against the new fan of b (a's
+    // fan mapped to b plus b's fan), and those absorbed by a's other neighbours, whose fans
+    // change shape too, against their new fans.
+    Fan fan_ab;
+    for (int i = 0; i < fan_a.size; ++i) fan_ab.triangles[fan_ab.size++] = fan_a.triangles[i];
+    for (int i = 0; i < fan_b.size; ++i) {
+      const auto c = current(fan_b.triangles[i]);
+      if (c[0] == a || c[1] == a || c[2] == a) continue;
+      if (fan_ab.size == kMaxFan) return reject(stats_.rejected_fan_size);
+      fan_ab.triangles[fan_ab.size++] = fan_b.triangles[i];
+    }
+    if (!class_within_epsilon(a, fan_ab, a, b) || !class_within_epsilon(b, fan_ab, a, b)) {
+      return reject(stats_.rejected_distance);
+    }
+    for (int j = 0; j < link_a.size; ++j) {
+      const VertexId x = link_a.items[j];
+      if (x == b || next_member_[x] == x) continue;  // a lone vertex lies on its own fan
+      Fan fan_x;
+      gather_fan(x, fan_x);
+      if (fan_x.overflow) return reject(stats_.rejected_fan_size);
+      if (!class_within_epsilon(x, fan_x, a, b)) return reject(stats_.rejected_distance);
+    }
+
+    // Apply: a joins b's class; the two triangles on the edge (a, b) die.
+    JournalEntry entry{a, b, {0, 0}, 0};
+    parent_[a] = b;
+    std::swap(next_member_[a], next_member_[b]);
+    for (int i = 0; i < fan_a.size; ++i) {
+      const auto c = current(fan_a.triangles[i]);
+      if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) {
+        alive_[fan_a.triangles[i]] = 0;
+        if (entry.killed_count < 2) entry.killed[entry.killed_count++] = fan_a.triangles[i];
+      }
+    }
+    assert(entry.killed_count == 2);
+    if (in_transaction_) journal_.push_back(entry);
+    ++stats_.collapses_done;
+    return true;
+  }
+
+  // ---- Merge transactions ------------------------------------------------------------------
+  //
+  // A merge may leave slivers (collinear vertices on flat data) whose normals the fold-over
+  // test cannot judge. They are removed at once by exact collapses; when that is impossible
+  // (e.g. the middle vertex is on a mesh boundary) the whole merge is undone. Undo is cheap
+  // because a collapse changes three things: parent[a], the ring splice, two alive flags.
+
+  struct JournalEntry {
+    VertexId a;
+    VertexId b;
+    std::array<TriangleId, 2> killed;
+    int killed_count;
+  };
+
+  void begin_transaction() {
+    in_transaction_ = true;
+    journal_.clear();
+    slivers_at_begin_ = stats_.sliver_collapses;
+  }
+
+  void commit() { in_transaction_ = false; }
+
+  void rollback() {
+    for (auto it = journal_.rbegin(); it != journal_.rend(); ++it) {
+      for (int k = 0; k < it->killed_count; ++k) alive_[it->killed[k]] = 1;
+      std::swap(next_member_[it->a], next_member_[it->b]);
+      parent_[it->a] = it->a;
+    }
+    stats_.collapses_done -= journal_.size();
+    stats_.sliver_collapses = slivers_at_begin_;
+    journal_.clear();
+    in_transaction_ = false;
+  }
+
+  // Removes the slivers in the fans of the vertices in `touched` (the targets of the merge's
+  // collapses: only their fans changed shape); false when one cannot be removed.
+  bool clean_touched_slivers(SmallSet<16>& touched) {
+    constexpr int kRounds = 4;
+    for (int round = 0; round < kRounds; ++round) {
+      bool found = false;
+      bool changed = false;
+      for (int i = 0; i < touched.size; ++i) {
+        const VertexId r = find(touched.items[i]);
+        Fan fan;
+        gather_fan(r, fan);
+        if (fan.overflow) return false;
+        for (int k = 0; k < fan.size; ++k) {
+          const TriangleId t = fan.triangles[k];
+          if (alive_[t] == 0) continue;
+          const auto c = current(t);
+          P3 n;
+          if (!is_sliver(position(c[0]), position(c[1]), position(c[2]), &n)) continue;
+          found = true;
+          VertexId end = kNoVertex;
+          if (collapse_sliver(t, &end)) {
+            changed = true;
+            touched.insert(end);
+          }
+        }
+      }
+      if (touched.overflow) return false;
+      if (!found) return true;
+      if (!changed) return false;
+    }
+    return false;
+  }
+
+  bool reject(std::size_t& counter) {
+    ++counter;
+    return false;
+  }
+
+  // ---- Lattice --------------------------------------------------------------------------
+
+  // Rows of cube records: records are in scan order, so each (y, z) row is a contiguous,
+  // x-sorted range; row_start_ holds the ranges (4 bytes per row instead of a hash map or a
+  // dense cube grid).
+  void build_rows() {
+    if (cubes_.empty()) return;
+    std::int32_t y_max = cubes_[0].y;
+    y_min_ = cubes_[0].y;
+    z_min_ = cubes_.front().z;
+    const std::int32_t z_max = cubes_.back().z;
+    for (const BoundaryCube& c : cubes_) {
+      y_min_ = std::min(y_min_, c.y);
+      y_max = std::max(y_max, c.y);
+    }
+    row_length_ = static_cast<std::int64_t>(y_max) - y_min_ + 1;
+    const std::int64_t rows = row_length_ * (static_cast<std::int64_t>(z_max) - z_min_ + 1);
+    z_rows_ = static_cast<std::int64_t>(z_max) - z_min_ + 1;
+    row_start_.assign(static_cast<std::size_t>(rows + 1), 0);
+    for (const BoundaryCube& c : cubes_) ++row_start_[static_cast<std::size_t>(row_of(c.y, c.z) + 1)];
+    for (std::size_t r = 0; r + 1 < row_start_.size(); ++r) row_start_[r + 1] += row_start_[r];
+    flag_.assign(cubes_.size(), kNoMergeDirection);
+    run_.assign(cubes_.size(), 1);
+  }
+
+  std::int64_t row_of(std::int32_t y, std::int32_t z) const {
+    return (static_cast<std::int64_t>(z) - z_min_) * row_length_ + (y - y_min_);
+  }
+
+  // Record index of boundary cube (x, y, z), or −1 when that cube has no surface.
+  std::int64_t find_cube(std::int32_t x, std::int32_t y, std::int32_t z) const {
+    if (y < y_min_ || y - y_min_ >= row_length_ || z < z_min_ || z - z_min_ >= z_rows_) return -1;
+    const std::size_t row = static_cast<std::size_t>(row_of(y, z));
+    const auto first = cubes_.begin() + row_start_[row];
+    const auto last = cubes_.begin() + row_start_[row + 1];
+    const auto it = std::lower_bound(first, last, x,
+                                     [](const BoundaryCube& c, std::int32_t v) { return c.x < v; });
+    if (it == last || it->x != x) return -1;
+    return it - cubes_.begin();
+  }
+
+  std::int64_t step(std::size_t record, int d, int times = 1) const {
+    const BoundaryCube& c = cubes_[record];
+    const auto& u = kMergeDirectionVector[d];
+    return find_cube(c.x + times * u[0], c.y + times * u[1], c.z + times * u[2]);
+  }
+
+  VertexId edge_vertex(std::size_t record, int edge) const {
+    const BoundaryCube& c = cubes_[record];
+    const unsigned slot = kEdgeSlots.slot[c.index][edge];
+    assert(slot != 0xFF);
+    return mesh_.triangles[c.first_triangle + slot / 3][slot % 3];
+  }
+
+  // ---- Merging (spec §4.1 with §4.4 decisions) ----------------------------------------------
+
+  void merge_cubes() {
+    for (std::size_t r = 0; r < cubes_.size(); ++r) {
+      const unsigned index = cubes_[r].index;
+      const TypeEntry& entry = type_of(index);
+      if (entry.type == CubeType::kNone) continue;  // type 4 and every ambiguous cube (D11)
+      unsigned candidates = entry.merge;
+      if (entry.type == CubeType::kHexagon && options_.hexagon_all_lines) candidates = entry.lines;
+      // FLAG (§4.1): a cube absorbed along d may only continue the run along d.
+      if (flag_[r] != kNoMergeDirection) candidates &= 1u << flag_[r];
+
+      // D2 + D3: the direction with the longest look-ahead run of the same raw index whose
+      // next cube is not yet absorbed; ties go to the table order (primary first).
+      int best = -1;
+      int best_length = 0;
+      for (int d = 0; d < kMergeDirectionCount; ++d) {
+        if (((candidates >> d) & 1u) == 0) continue;
+        const std::int64_t next = step(r, d);
+        if (next < 0 || cubes_[static_cast<std::size_t>(next)].index != index ||
+            flag_[static_cast<std::size_t>(next)] != kNoMergeDirection) {
+          continue;
+        }
+        int length = 1;
+        while (length < options_.run_cap) {
+          const std::int64_t further = step(r, d, length + 1);
+          if (further < 0 || cubes_[static_cast<std::size_t>(further)].index != index) break;
+          ++length;
+        }
+        if (length > best_length) {
+          best = d;
+          best_length = length;
+        }
+      }
+      if (best < 0) continue;
+      if (run_[r] >= options_.run_cap) {  // D9
+        ++stats_.runs_capped;
+        continue;
+      }
+
+      // D1: the vertices of C + d on the rear edges move onto its front edges.
+      const std::size_t next = static_cast<std::size_t>(step(r, best));
+      const unsigned cut = kCubeCutEdges[index];
+      const MoveRow& row = kMoveTable[best];
+      bool ok = true;
+      SmallSet<16> touched;
+      begin_transaction();
+      for (int m = 0; m < row.move_count && ok; ++m) {
+        const int s = row.moves[m].source;
+        const int t = row.moves[m].target;
+        if (((cut >> s) & 1u) == 0 || ((cut >> t) & 1u) == 0) continue;
+        ok = try_collapse(edge_vertex(next, s), edge_vertex(next, t));
+        touched.insert(edge_vertex(next, t));
+      }
+      if (ok && !clean_touched_slivers(touched)) {
+        ++stats_.rejected_sliver;
+        ok = false;
+      }
+      if (!ok) {
+        // All or nothing: a partly merged cube would break the run structure FLAG assumes.
+        rollback();
+        ++stats_.merges_abandoned;
+        continue;
+      }
+      commit();
+      flag_[next] = static_cast<std::uint8_t>(best);
+      run_[next] = static_cast<std::uint8_t>(std::min(run_[r] + 1, 255));
+      ++stats_.cubes_merged_by_type[static_cast<std::size_t>(paper_type(entry.type))];
+      if (entry.type == CubeType::kHexagon) ++stats_.hexagon_merges;
+      if (entry.type == CubeType::kMinor) ++stats_.minor_merges;
+      ++stats_.merges_by_direction[static_cast<std::size_t>(best)];
+    }
+  }
+
+  // ---- Sliver clean-up (D6) -----------------------------------------------------------------
+
+  // A sliver's middle vertex (opposite its longest edge) lies on that edge; collapsing it onto
+  // the nearer end of the edge changes no geometry beyond the sliver's height.
+  void remove_slivers() {
+    constexpr int kRounds = 5;
+    for (int round = 0; round < kRounds; ++round) {
+      std::size_t changed = 0;
+      for (TriangleId t = 0; t < alive_.size(); ++t) {
+        if (alive_[t] == 0) continue;
+        VertexId end = kNoVertex;
+        if (collapse_sliver(t, &end)) ++changed;
+      }
+      if (changed == 0) break;
+    }
+    for (TriangleId t = 0; t < alive_.size(); ++t) {
+      if (alive_[t] == 0) continue;
+      const auto c = current(t);
+      P3 n;
+      if (is_sliver(position(c[0]), position(c[1]), position(c[2]), &n)) ++stats_.slivers_left;
+    }
+  }
+
+  bool collapse_sliver(TriangleId t, VertexId* survivor) {
+    const auto c = current(t);
+    const P3 p[3] = {position(c[0]), position(c[1]), position(c[2])};
+    P3 n;
+    if (!is_sliver(p[0], p[1], p[2], &n)) return false;
+    int middle = 0;
+    double longest = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      const P3 e = sub(p[(k + 2) % 3], p[(k + 1) % 3]);  // the edge opposite corner k
+      if (dot3(e, e) > longest) {
+        longest = dot3(e, e);
+        middle = k;
+      }
+    }
+    const VertexId end0 = c[(middle + 1) % 3];
+    const VertexId end1 = c[(middle + 2) % 3];
+    const P3 d0 = sub(p[middle], position(end0));
+    const P3 d1 = sub(p[middle], position(end1));
+    const bool first0 = dot3(d0, d0) <= dot3(d1, d1);
+    for (VertexId end : {first0 ? end0 : end1, first0 ? end1 : end0}) {
+      if (try_collapse(c[middle], end)) {
+        ++stats_.sliver_collapses;
+        *survivor = end;
+        return true;
+      }
+    }
+    return false;
+  }
+
+  const TriangleMesh& mesh_;
+  std::span<const BoundaryCube> cubes_;
+  const MergeOptions& options_;
+  MergeStats& stats_;
+  double cos_normal_change_ = 0.0;
+  double cos_normal_gradient_ = 0.0;
+  double epsilon2_ = 0.0;
+
+  std::vector<VertexId> parent_;       // union-find: the vertex that absorbed this one
+  std::vector<VertexId> next_member_;  // ring through each class
+  std::vector<std::uint32_t> offset_;  // CSR vertex → incident triangles
+  std::vector<TriangleId> incident_;
+  std::vector<std::uint8_t> alive_;
+  bool in_transaction_ = false;
+  std::size_t slivers_at_begin_ = 0;
+  std::vector<JournalEntry> journal_;  // collapses of the open transaction (reused buffer)
+
+  std::int32_t y_min_ = 0;
+  std::int32_t z_min_ = 0;
+  std::int64_t row_length_ = 0;
+  std::int64_t z_rows_ = 0;
+  std::vector<std::uint32_t> row_start_;
+  std::vector<std::uint8_t> flag_;  // FLAG of §4.1, per cube record
+  std::vector<std::uint8_t> run_;   // cubes in the run that ends at this cube
+};
+
+}  // namespace
+
+void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
+                 const MergeOptions& options, MergeStats* stats) {
+  assert(!options.type3 && "type 3 is not implemented");
+  assert(options.run_cap >= 1 && options.epsilon_voxels >= 0.0);
+  MergeStats local;
+  local.triangles_before = mesh.triangles.size();
+  local.vertices_before = mesh.positions.size();
+  Merger merger(mesh, cubes, options, local);
+  merger.run();
+  mesh = merger.result();
+  local.triangles_after = mesh.triangles.size();
+  local.vertices_after = mesh.positions.size();
+  if (stats != nullptr) *stats = local;
+}
+
+TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractOptions& extract,
+                                 const MergeOptions& options, MergeStats* stats) {
+  std::vector<BoundaryCube> cubes;
+  ExtractOptions with_cubes = extract;
+  with_cubes.cubes = &cubes;
+  TriangleMesh mesh = extract_isosurface(volume, iso, with_cubes);
+  merge_types(mesh, cubes, options, stats);
+  return mesh;
+}
+
+}  // namespace typemerge::core

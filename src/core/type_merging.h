@@ -1,0 +1,117 @@
+// Type merging (Oh & Park 1996, "A type-merging algorithm for extracting an isosurface from
+// volumetric data", The Visual Computer 12:406–419), as specified in type-merging-spec.md:
+// §1.5 scan order, §2.3 moving table, §3 / Appendix A type table (tables in
+// type_merging_tables.h), §4.1–4.2 the merge procedure with FLAG consistency, §4.4 decisions
+// D1–D9 and D11, §4.5 the checked variant. Type 3 (§3.4, D10) is not implemented.
+//
+// What it does: the marching-cubes mesh is reduced by merging runs of cubes with the same
+// index along a direction of the type table. Each merge of C with C + d moves the surface
+// vertices on the rear edges of C + d onto its front edges (moving table row d), which is done
+// as half-edge collapses on the indexed mesh. Unlike the paper, every collapse is checked
+// (§4.5): link condition (manifold and topology preserved), no fold-over (a moved triangle
+// turns by at most max_normal_change_deg, and its normal stays within
+// max_normal_to_gradient_deg of the mean MC vertex normal, i.e. of −∇f), and every original
+// MC vertex absorbed by an affected vertex stays within epsilon_voxels of the new mesh. Runs
+// are capped at run_cap cubes. Surviving vertices keep their MC position and normal, so
+// every output vertex lies exactly on the MC surface. Zero-area slivers left by collinear
+// vertices (frequent on flat data) are removed by exact collapses afterwards (D6).
+//
+// Guarantees (for a closed, manifold MC mesh, i.e. consistent mode): the output is closed,
+// edge- and vertex-manifold, consistently oriented, with the same Euler characteristic and
+// number of components as the MC mesh. Vertices on a mesh boundary (close_borders off, or
+// classic mode's holes) never move, so boundaries are kept too.
+//
+// Memory (whole-volume approach of §4.5, "polygonize, merge, compact"): peak ≈ the MC mesh
+// (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube (lattice records from
+// the extractor) + 12 bytes per vertex (union-find parent, class ring, CSR offset) + 13 bytes
+// per triangle (CSR incidence, alive flag) + 2 bytes per boundary cube (FLAG, run length) +
+// 4 bytes per cube row (y, z) + the compacted output. No per-vertex heap allocation, no hash
+// map: everything is a flat array indexed by vertex, triangle or cube record.
+//
+// Streaming: the merge visits cubes in the fixed scan order (z, then y, then x) and a merge
+// only touches cubes C + d with d forward, within run_cap layers; so a slab version can
+// finalise layer k − run_cap − 1 after layer k is merged (spec §4.5). Not done yet.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <span>
+
+#include "core/marching_cubes.h"
+#include "core/mesh.h"
+#include "core/type_merging_tables.h"
+#include "core/volume.h"
+
+namespace typemerge::core {
+
+struct MergeOptions {
+  // D7: every original MC vertex stays within this distance (voxels) of the merged mesh.
+  double epsilon_voxels = 0.5;
+  // D9: most cubes in one merged run (2 = pairs only). Bounds needle triangles: the spec's
+  // prototype loses 0.3–3 points of reduction on curved surfaces with a cap of 4.
+  int run_cap = 6;
+  // D10: type-3 groups (spec §3.4). Not implemented; must be false.
+  bool type3 = false;
+  // D4: hexagons merge along the paper's two lines with an x component; true adds the third.
+  bool hexagon_all_lines = false;
+  // §4.5 fold-over tests.
+  double max_normal_change_deg = 45.0;
+  double max_normal_to_gradient_deg = 80.0;
+  // D6: collapse zero-area slivers after merging.
+  bool remove_slivers = true;
+};
+
+struct MergeStats {
+  // Merges (C absorbed C + d) by paper type 0, 1, 2; of the type-2 merges, those of hexagons
+  // and of minor cubes; by direction (MergeDirection order).
+  std::array<std::size_t, 3> cubes_merged_by_type{};
+  std::size_t hexagon_merges = 0;
+  std::size_t minor_merges = 0;
+  std::array<std::size_t, kMergeDirectionCount> merges_by_direction{};
+  std::size_t runs_capped = 0;  // a merge was possible but the run had run_cap cubes
+  std::size_t merges_abandoned = 0;  // some collapse was rejected: the merge was undone
+  std::size_t rejected_sliver = 0;   // of those: a sliver it made could not be removed
+
+  std::size_t collapses_tried = 0;  // vertex moves of merges and of the sliver clean-up
+  std::size_t collapses_done = 0;
+  std::size_t rejected_boundary = 0;  // the moving vertex is on a mesh boundary
+  std::size_t rejected_link = 0;      // not an edge, or the link condition fails
+  std::size_t rejected_fan_size = 0;  // fan larger than the fixed buffers (kMaxFan)
+  std::size_t rejected_normal = 0;    // a triangle would turn by more than the limit
+  std::size_t rejected_gradient = 0;  // a triangle would face away from the MC normals
+  std::size_t rejected_distance = 0;  // an absorbed MC vertex would be farther than epsilon
+
+  std::size_t sliver_collapses = 0;
+  std::size_t slivers_left = 0;  // slivers no checked collapse could remove
+
+  std::size_t triangles_before = 0;
+  std::size_t triangles_after = 0;
+  std::size_t vertices_before = 0;
+  std::size_t vertices_after = 0;
+};
+
+// Merges `mesh` in place and compacts it (unused vertices dropped, the rest renumbered in
+// their original order, triangles kept in their original order).
+// Preconditions: `mesh` and `cubes` come from one extract_isosurface call (cubes = its
+// ExtractOptions::cubes output) and have not been modified; options.type3 is false;
+// options.run_cap >= 1; options.epsilon_voxels >= 0.
+void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
+                 const MergeOptions& options = {}, MergeStats* stats = nullptr);
+
+// extract_isosurface followed by merge_types. `extract.cubes` is ignored (used internally).
+TriangleMesh extract_type_merged(const Volume& volume, float iso,
+                                 const ExtractOptions& extract = {},
+                                 const MergeOptions& options = {}, MergeStats* stats = nullptr);
+
+namespace detail {
+
+// Squared distance from point p to triangle (a, b, c) (Ericson, Real-Time Collision
+// Detection §5.1.5); correct for degenerate triangles too.
+double point_triangle_distance_squared(const std::array<double, 3>& p,
+                                       const std::array<double, 3>& a,
+                                       const std::array<double, 3>& b,
+                                       const std::array<double, 3>& c);
+
+}  // namespace detail
+
+}  // namespace typemerge::core
