@@ -1,93 +1,124 @@
 #include "app/convert_command.h"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <limits>
 #include <ostream>
 
 #include "app/exit_codes.h"
-#include "app/version.h"
-#include "core/marching_cubes.h"
-#include "core/mesh_checks.h"
-#include "core/window_field.h"
-#include "io/preview_png.h"
 #include "app/presets.h"
+#include "app/version.h"
+#include "core/window_field.h"
 #include "dicom/series_loader.h"
+#include "io/atomic_file.h"
+#include "io/preview_png.h"
 #include "io/stl_writer.h"
+#include "preprocess/crop.h"
+#include "preprocess/denoise.h"
+#include "preprocess/resample.h"
 
 namespace typemerge::app {
-
 namespace {
 
-// What to extract: value >= lo, or lo <= value <= hi.
-struct SurfaceRequest {
-  double lo = 0;
-  std::optional<double> hi;
-  std::string label;
-  bool from_preset = false;
-};
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+using nlohmann::ordered_json;
 
-SurfaceRequest surface_request(const ConvertOptions& options) {
-  SurfaceRequest request;
-  if (!options.preset.empty()) {
-    const auto preset = find_preset(options.preset);
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
+  std::vector<SurfaceSpec> specs;
+  for (const std::string& name : options.presets) {
+    const auto preset = find_preset(name);
     if (!preset) {
-      throw CommandError{kExitUsage, "unknown preset '" + options.preset +
-                                         "' (see `typemerge presets`)"};
+      throw CommandError{kExitUsage, "unknown preset '" + name + "' (see `typemerge presets`)"};
     }
-    request = {preset->lo, std::nullopt, "preset " + preset->name, true};
-    if (std::isfinite(preset->hi)) request.hi = preset->hi;
-  } else if (options.iso) {
+    SurfaceSpec spec{preset->name, "preset " + preset->name, preset->lo, std::nullopt, true,
+                     preset->min_component_mm3, preset->fill_cavities};
+    if (std::isfinite(preset->hi)) spec.hi = preset->hi;
+    specs.push_back(spec);
+  }
+  if (options.iso) {
     char label[64];
     std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
-    request = {*options.iso, std::nullopt, label, false};
-  } else if (options.window.size() == 2) {
+    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false});
+  }
+  if (options.window.size() == 2) {
     if (!(options.window[0] <= options.window[1])) {
       throw CommandError{kExitUsage, "--window LO,HI needs LO <= HI"};
     }
-    request = {options.window[0], options.window[1], "window", false};
-  } else {
+    specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false});
+  }
+  if (specs.empty()) {
     throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};
   }
-  return request;
+  return specs;
 }
 
 // A preset assumes Hounsfield units and a tissue that is there: check both rather than write
 // an empty mesh or a box (everything inside).
-void check_tissue(const dicom::LoadedSeries& loaded, const SurfaceRequest& request) {
-  if (request.from_preset &&
-      !dicom::hounsfield_plausibility_warning(loaded.min_hu, loaded.max_hu).empty()) {
+void check_tissue(const core::Volume& volume, float min_hu, float max_hu, const SurfaceSpec& spec) {
+  if (spec.from_preset && !dicom::hounsfield_plausibility_warning(min_hu, max_hu).empty()) {
+    char text[96];
+    std::snprintf(text, sizeof text, "%.0f to %.0f", double(min_hu), double(max_hu));
     throw CommandError{kExitInputRefused,
-                       "the values of this series do not look like Hounsfield units (" +
-                           std::to_string(loaded.min_hu) + " to " + std::to_string(loaded.max_hu) +
-                           "), so " + request.label + " would not fit; give --iso or --window "
-                           "in this data's units"};
+                       std::string("the values of this series do not look like Hounsfield units (") +
+                           text + "), so " + spec.label +
+                           " would not fit; give --iso or --window in this data's units"};
   }
-  const float hi = request.hi ? static_cast<float>(*request.hi)
-                              : std::numeric_limits<float>::infinity();
-  const auto inside = core::count_in_window(loaded.volume, static_cast<float>(request.lo), hi);
-  const auto total = loaded.volume.size().voxels();
+  const float hi = spec.hi ? static_cast<float>(*spec.hi) : std::numeric_limits<float>::infinity();
+  const auto inside = core::count_in_window(volume, static_cast<float>(spec.lo), hi);
   if (inside == 0) {
-    throw CommandError{kExitInputRefused, "no surface: no voxel inside " + request.label +
+    throw CommandError{kExitInputRefused, "no surface: no voxel inside " + spec.label +
                                               ", the tissue is absent from this series"};
   }
-  if (inside == total) {
-    throw CommandError{kExitInputRefused, "every voxel is inside " + request.label +
+  if (inside == volume.size().voxels()) {
+    throw CommandError{kExitInputRefused, "every voxel is inside " + spec.label +
                                               ": the surface would be the volume's box"};
   }
+}
+
+ordered_json check_json(const core::MeshCheck& check) {
+  return {{"closed_manifold", check.closed_manifold()},
+          {"boundary_edges", check.boundary_edges},
+          {"non_manifold_edges", check.non_manifold_edges},
+          {"non_manifold_vertices", check.non_manifold_vertices},
+          {"inconsistent_edges", check.inconsistent_edges},
+          {"degenerate_triangles", check.degenerate_triangles},
+          {"components", check.components},
+          {"euler_characteristic", check.euler_characteristic}};
+}
+
+ordered_json record_json(const preprocess::StepRecord& record, double ms) {
+  ordered_json parameters = ordered_json::object();
+  for (const auto& [key, value] : record.parameters) parameters[key] = value;
+  return {{"step", record.step}, {"description", record.description},
+          {"parameters", parameters}, {"warnings", record.warnings}, {"ms", ms}};
+}
+
+// Output path for one surface: OUT itself for one surface, OUT/<name>.stl for several.
+fs::path stl_path(const ConvertOptions& options, const SurfaceSpec& spec, std::size_t count) {
+  if (count == 1 && fs::path(options.output).extension() == ".stl") return options.output;
+  return fs::path(options.output) / (spec.name + ".stl");
 }
 
 }  // namespace
 
 void add_convert_command(CLI::App& app, ConvertOptions& options) {
-  CLI::App* command = app.add_subcommand("convert", "Extract an isosurface as binary STL (LPS mm)");
+  CLI::App* command = app.add_subcommand(
+      "convert", "Extract tissue surfaces as binary STL in patient LPS mm");
   add_input_options(*command, options.input);
   command->add_option("--series", options.series_id, "Series id from `typemerge info`");
-  auto* preset = command->add_option("--preset", options.preset,
-                                     "Tissue preset (see `typemerge presets`)");
+  auto* preset = command->add_option("--preset", options.presets,
+                                     "Tissue preset(s), comma-separated (see `typemerge presets`)")
+                     ->delimiter(',');
   auto* iso = command->add_option("--iso", options.iso, "Iso value in HU (inside: value >= iso)");
   auto* window = command->add_option("--window", options.window,
                                      "HU window LO,HI: the surface around voxels inside it")
@@ -95,19 +126,58 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
                      ->expected(2);
   preset->excludes(iso)->excludes(window);
   iso->excludes(window);
-  command->add_option("--preview", options.preview, "Also write a shaded PNG preview");
-  command->add_option("-o,--output", options.output, "Output .stl file")->required();
+  command->add_option("-o,--output", options.output,
+                      "Output .stl file (one surface) or folder (several presets)")
+      ->required();
   command->add_option("--algorithm", options.algorithm,
-                      "mc: topologically consistent marching cubes; classic: fixed-table "
-                      "marching cubes (shows the holes of ambiguous cubes)")
-      ->check(CLI::IsMember({"mc", "classic"}));
+                      "tm: type merging (default); mc: consistent marching cubes; classic: "
+                      "fixed-table marching cubes (shows the holes of ambiguous cubes)")
+      ->check(CLI::IsMember({"tm", "mc", "classic"}));
   command->add_flag("--open-borders", options.open_borders,
                     "Leave surfaces open where they meet the volume border (default: closed)");
+  command->add_option("--finish", options.finish,
+                      "default: the preset's clean-up; none: the extractor's surface unchanged")
+      ->check(CLI::IsMember({"default", "none"}));
+  command->add_option("--min-component", options.min_component_mm3,
+                      "Remove components enclosing less than this many mm3");
+  command->add_flag("--keep-largest", options.finish_options.keep_largest,
+                    "Keep only the largest component");
+  command->add_flag("--fill-cavities", options.fill_cavities,
+                    "Remove shells inside others (one outer shell)");
+  command->add_option("--smooth", options.finish_options.smooth_iterations,
+                      "Taubin smoothing iterations (volume-preserving; default 0)")
+      ->check(CLI::Range(0, 1000));
+  command->add_option("--reduce-to", options.finish_options.reduce_to_triangles,
+                      "Further reduce to this many triangles (quadric decimation)");
+  command->add_option("--max-error", options.finish_options.max_error_mm,
+                      "Error bound of that reduction in mm (default 0.1 when reducing)")
+      ->check(CLI::NonNegativeNumber);
+  command->add_option("--denoise", options.denoise, "Denoise first: none, gaussian, median, bilateral")
+      ->check(CLI::IsMember({"none", "gaussian", "median", "bilateral"}));
+  command->add_option("--voxel-size", options.voxel_size_mm,
+                      "Resample to isotropic voxels of this size in mm first")
+      ->check(CLI::PositiveNumber);
+  command->add_flag("--crop-tissue", options.crop_to_tissue,
+                    "Crop to the bounding box of the body (> -400 HU) first");
+  command->add_flag("--preview", options.preview, "Also write a shaded PNG beside each STL");
+  command->add_option("--report", options.report, "Write a JSON report of the run");
 }
 
 int run_convert(const ConvertOptions& options, std::ostream& log) {
-  using Clock = std::chrono::steady_clock;
-  const auto start = Clock::now();
+  const auto run_start = Clock::now();
+  const std::vector<SurfaceSpec> specs = surface_specs(options);
+  if (specs.size() > 1) {
+    std::error_code error;
+    fs::create_directories(options.output, error);
+    if (error) throw CommandError{kExitOutputFailed, "cannot create " + options.output};
+  } else {
+    const fs::path parent = fs::path(stl_path(options, specs[0], 1)).parent_path();
+    if (!parent.empty() && !fs::is_directory(parent)) {
+      throw CommandError{kExitOutputFailed, "output folder " + parent.string() + " does not exist"};
+    }
+  }
+
+  ordered_json report = {{"tool", "typemerge"}, {"version", kVersion}};
   dicom::FolderScan scan;
   try {
     scan = dicom::scan_folder(options.input.input, options.input.scan_options());
@@ -116,55 +186,142 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   }
   const dicom::SeriesInfo& series = select_series(scan, options.series_id);
   dicom::LoadedSeries loaded;
+  const auto load_start = Clock::now();
   try {
     loaded = dicom::load_series(series);
   } catch (const dicom::LoadError& error) {
     throw CommandError{kExitInputRefused, error.what()};
   }
+  const double load_ms = ms_since(load_start);
   for (const auto& w : loaded.warnings) log << "warning: " << w << "\n";
-  const auto loaded_at = Clock::now();
+  const auto& size = loaded.volume.size();
+  report["input"] = {{"series", series.id},
+                     {"description", series.description},
+                     {"size", {size.nx, size.ny, size.nz}},
+                     {"spacing_mm", {loaded.volume.geometry().spacing(0),
+                                     loaded.volume.geometry().spacing(1),
+                                     series.geometry.slice_step_mm}},
+                     {"tilt_degrees", loaded.tilt_degrees},
+                     {"hu_range", {loaded.min_hu, loaded.max_hu}},
+                     {"warnings", loaded.warnings},
+                     {"load_ms", load_ms}};
 
-  core::ExtractOptions extract;
-  extract.close_borders = !options.open_borders;
-  extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
-                                                : core::ExtractOptions::Mode::consistent;
-  const SurfaceRequest request = surface_request(options);
-  check_tissue(loaded, request);
-  core::TriangleMesh mesh;
-  if (request.hi) {
-    mesh = core::extract_isosurface(
-        core::window_field(loaded.volume, static_cast<float>(request.lo),
-                           static_cast<float>(*request.hi)),
-        0.0f, extract);
-  } else {
-    mesh = core::extract_isosurface(loaded.volume, static_cast<float>(request.lo), extract);
-  }
-  core::to_patient(mesh, loaded.volume.geometry());
-  const auto extracted_at = Clock::now();
-  if (mesh.empty()) {
-    throw CommandError{kExitInputRefused, "no surface for " + request.label +
-                                              ": values range from " +
-                                              std::to_string(loaded.min_hu) + " to " +
-                                              std::to_string(loaded.max_hu)};
-  }
+  // Preprocessing, in a fixed order: crop (less to filter), denoise, resample.
+  core::Volume volume = std::move(loaded.volume);
+  ordered_json steps = ordered_json::array();
   try {
-    io::write_binary_stl(mesh, options.output, io::stl_header(kVersion, "LPS"));
-    if (!options.preview.empty()) io::write_preview_png(mesh, options.preview);
-  } catch (const std::runtime_error& error) {
-    throw CommandError{kExitOutputFailed, error.what()};
+    if (options.crop_to_tissue) {
+      const auto start = Clock::now();
+      auto step = preprocess::crop_to_tissue(volume, {});
+      volume = std::move(step.volume);
+      steps.push_back(record_json(step.record, ms_since(start)));
+    }
+    if (options.denoise != "none") {
+      const auto start = Clock::now();
+      preprocess::StepResult step =
+          options.denoise == "gaussian" ? preprocess::gaussian_filter(std::move(volume))
+          : options.denoise == "median" ? preprocess::median_filter(std::move(volume))
+                                        : preprocess::bilateral_filter(std::move(volume));
+      volume = std::move(step.volume);
+      steps.push_back(record_json(step.record, ms_since(start)));
+    }
+    if (options.voxel_size_mm > 0) {
+      const auto start = Clock::now();
+      preprocess::IsotropicOptions isotropic;
+      isotropic.voxel_size_mm = options.voxel_size_mm;
+      auto step = preprocess::resample_isotropic(volume, isotropic);
+      volume = std::move(step.volume);
+      steps.push_back(record_json(step.record, ms_since(start)));
+    }
+  } catch (const std::invalid_argument& error) {
+    throw CommandError{kExitUsage, error.what()};
   }
-  const auto written_at = Clock::now();
-  auto ms = [](auto a, auto b) {
-    return std::chrono::duration<double, std::milli>(b - a).count();
-  };
-  char text[256];
-  std::snprintf(text, sizeof text,
-                "series %s: %zu triangles, %zu vertices written to %s (load %.0f ms, extract "
-                "%.0f ms, write %.0f ms)\n",
-                series.id.c_str(), mesh.triangles.size(), mesh.positions.size(),
-                options.output.c_str(), ms(start, loaded_at), ms(loaded_at, extracted_at),
-                ms(extracted_at, written_at));
-  log << text;
+  report["preprocess"] = steps;
+
+  PipelineOptions pipeline;
+  pipeline.algorithm = options.algorithm;
+  pipeline.close_borders = !options.open_borders;
+  pipeline.finish = options.finish_options;
+  pipeline.finish.enabled = options.finish != "none";
+  pipeline.finish.min_component_mm3 = options.min_component_mm3;
+  if (options.fill_cavities) pipeline.finish.fill_cavities = true;
+  report["parameters"] = {{"algorithm", options.algorithm},
+                          {"close_borders", pipeline.close_borders},
+                          {"finish", options.finish},
+                          {"smooth_iterations", pipeline.finish.smooth_iterations},
+                          {"reduce_to", pipeline.finish.reduce_to_triangles},
+                          {"max_error_mm", pipeline.finish.max_error_mm}};
+
+  ordered_json surfaces = ordered_json::array();
+  for (const SurfaceSpec& spec : specs) {
+    check_tissue(volume, loaded.min_hu, loaded.max_hu, spec);
+    SurfaceResult result = make_surface(volume, spec, pipeline);
+    if (result.mesh.empty()) {
+      throw CommandError{kExitInputRefused,
+                         result.steps.size() > 1
+                             ? "the surface of " + spec.label + " was removed by finishing: every "
+                               "component encloses less than the minimum volume (see "
+                               "--min-component, --finish none)"
+                             : "no surface for " + spec.label};
+    }
+    const fs::path stl = stl_path(options, spec, specs.size());
+    const auto write_start = Clock::now();
+    try {
+      io::write_binary_stl(result.mesh, stl, io::stl_header(kVersion, "LPS"));
+      if (options.preview) io::write_preview_png(result.mesh, fs::path(stl).replace_extension(".png"));
+    } catch (const std::runtime_error& error) {
+      throw CommandError{kExitOutputFailed, error.what()};
+    }
+    const double write_ms = ms_since(write_start);
+    for (const auto& w : result.warnings) log << "warning: " << spec.name << ": " << w << "\n";
+
+    ordered_json step_list = ordered_json::array();
+    for (const auto& step : result.steps) {
+      ordered_json details = ordered_json::object();
+      for (const auto& [key, value] : step.details) details[key] = value;
+      step_list.push_back({{"step", step.step}, {"ms", step.milliseconds},
+                           {"triangles", step.triangles}, {"details", details},
+                           {"validity", check_json(step.check)}});
+    }
+    const core::MeshCheck& final_check = result.steps.back().check;
+    std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (const auto& p : result.mesh.positions) {
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], double(p[c]));
+        hi[c] = std::max(hi[c], double(p[c]));
+      }
+    }
+    surfaces.push_back({{"name", spec.name},
+                        {"label", spec.label},
+                        {"hu_lo", spec.lo},
+                        {"hu_hi", spec.hi ? ordered_json(*spec.hi) : ordered_json(nullptr)},
+                        {"output", stl.filename().string()},
+                        {"triangles", result.mesh.triangles.size()},
+                        {"volume_ml", final_check.volume / 1000.0},
+                        {"area_mm2", final_check.area},
+                        {"bounding_box_lps_mm", {lo, hi}},
+                        {"validity", check_json(final_check)},
+                        {"steps", step_list},
+                        {"write_ms", write_ms},
+                        {"warnings", result.warnings}});
+    char line[256];
+    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s, written to %s\n",
+                  spec.label.c_str(), result.mesh.triangles.size(), final_check.volume / 1000.0,
+                  final_check.closed_manifold() ? "closed manifold" : "NOT closed manifold",
+                  stl.string().c_str());
+    log << line;
+  }
+  report["surfaces"] = surfaces;
+  report["total_ms"] = ms_since(run_start);
+  if (!options.report.empty()) {
+    try {
+      io::AtomicFile file(options.report);
+      file.write(report.dump(2) + "\n");
+      file.commit();
+    } catch (const std::runtime_error& error) {
+      throw CommandError{kExitOutputFailed, error.what()};
+    }
+  }
   return kExitOk;
 }
 

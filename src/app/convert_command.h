@@ -1,4 +1,6 @@
-// `typemerge convert DIR (--preset NAME | --iso HU | --window LO,HI) -o out.stl`: one surface.
+// `typemerge convert DIR (--preset A[,B…] | --iso HU | --window LO,HI) -o OUT`: the main job.
+// Loads the series once, optionally preprocesses it, and for each requested tissue extracts,
+// finishes and writes a binary STL (LPS mm), with an optional PNG preview and a JSON report.
 #pragma once
 
 #include <iosfwd>
@@ -7,6 +9,7 @@
 #include <vector>
 
 #include "app/input_options.h"
+#include "app/surface_pipeline.h"
 
 namespace typemerge::app {
 
@@ -14,12 +17,20 @@ struct ConvertOptions {
   InputOptions input;
   std::string series_id;
   std::string output;
+  std::vector<std::string> presets;
   std::optional<double> iso;
-  std::string preset;
   std::vector<double> window;  // lo, hi
-  std::string algorithm = "mc";
   bool open_borders = false;
-  std::string preview;
+  std::string algorithm = "tm";
+  std::string finish = "default";  // default | none
+  FinishOptions finish_options;
+  std::optional<double> min_component_mm3;
+  bool fill_cavities = false;
+  bool preview = false;
+  std::string report;
+  std::string denoise = "none";  // none | gaussian | median | bilateral
+  double voxel_size_mm = 0;      // > 0: resample to isotropic voxels of this size
+  bool crop_to_tissue = false;
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);

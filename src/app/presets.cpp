@@ -7,7 +7,7 @@ namespace typemerge::app {
 const std::vector<Preset>& presets() {
   constexpr double kNoLimit = std::numeric_limits<double>::infinity();
   static const std::vector<Preset> kPresets = {
-      {"bone", 226, kNoLimit, "all bone (InVesalius 'Bone' 226..3071, no upper bound)", 1000,
+      {"bone", 226, kNoLimit, "all bone (InVesalius 'Bone' 226..3071, no upper bound)", 50,
        false},
       {"compact-bone", 662, 1988, "cortical bone, adult", 1000, false},
       {"compact-bone-child", 586, 2198, "cortical bone, child", 1000, false},

@@ -238,8 +238,7 @@ TEST(Cli, PresetWindowAndPreview) {
   const fs::path dir = write_ball_series("preset");
   const fs::path out = fresh_dir("preset_out");
   const CommandRun bone = run("convert " + dir.string() + " --preset bone -o " +
-                              (out / "bone.stl").string() + " --preview " +
-                              (out / "bone.png").string());
+                              (out / "bone.stl").string() + " --preview");
   ASSERT_EQ(bone.exit_code, 0) << bone.out;
   std::ifstream png(out / "bone.png", std::ios::binary);
   std::string signature(8, '\0');
@@ -272,6 +271,48 @@ TEST(Cli, PresetRefusesDataThatIsNotHounsfield) {
                            (fresh_dir("not_hu_out") / "b.stl").string());
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("Hounsfield"), std::string::npos) << r.out;
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Cli, SeveralPresetsInOneRunWithReport) {
+  const fs::path dir = write_ball_series("multi");
+  const fs::path out = fresh_dir("multi_out");
+  // The ball is small (about 120 mm3): keep it through the presets' debris removal.
+  const CommandRun r = run("convert " + dir.string() + " --preset bone,skin -o " + out.string() +
+                           " --min-component 10 --report " + (out / "report.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_TRUE(fs::exists(out / "bone.stl"));
+  EXPECT_TRUE(fs::exists(out / "skin.stl"));
+  std::ifstream in(out / "report.json");
+  const auto report = nlohmann::json::parse(in);
+  ASSERT_EQ(report["surfaces"].size(), 2u);
+  for (const auto& surface : report["surfaces"]) {
+    EXPECT_TRUE(surface["validity"]["closed_manifold"].get<bool>()) << surface["name"];
+    EXPECT_GT(surface["volume_ml"].get<double>(), 0.0);
+    EXPECT_GE(surface["steps"].size(), 1u);
+  }
+  EXPECT_EQ(report["input"]["size"], nlohmann::json({20, 16, 10}));
+  EXPECT_EQ(report.dump().find("Canary"), std::string::npos);
+  EXPECT_EQ(report.dump().find("CANARYID123"), std::string::npos);
+}
+
+TEST(Cli, TypeMergingHalvesTrianglesAndStaysClosed) {
+  const fs::path dir = write_ball_series("tm");
+  const fs::path out = fresh_dir("tm_out");
+  ASSERT_EQ(run("convert " + dir.string() + " --iso 0 --algorithm mc --finish none -o " +
+                (out / "mc.stl").string()).exit_code, 0);
+  ASSERT_EQ(run("convert " + dir.string() + " --iso 0 --algorithm tm --finish none -o " +
+                (out / "tm.stl").string()).exit_code, 0);
+  const auto mc = nlohmann::json::parse(run("stats --json " + (out / "mc.stl").string()).out);
+  const auto tm = nlohmann::json::parse(run("stats --json " + (out / "tm.stl").string()).out);
+  EXPECT_TRUE(tm["closed_manifold"].get<bool>());
+  EXPECT_EQ(tm["euler_characteristic"], mc["euler_characteristic"]);
+  EXPECT_LT(tm["triangles"].get<double>(), 0.8 * mc["triangles"].get<double>());
+  EXPECT_NEAR(tm["volume_mm3"].get<double>(), mc["volume_mm3"].get<double>(),
+              0.05 * mc["volume_mm3"].get<double>());
 }
 
 }  // namespace

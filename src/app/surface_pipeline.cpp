@@ -1,0 +1,130 @@
+#include "app/surface_pipeline.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "core/marching_cubes.h"
+#include "core/type_merging.h"
+#include "core/window_field.h"
+#include "mesh/components.h"
+#include "mesh/decimation.h"
+#include "mesh/smoothing.h"
+#include "mesh/validity.h"
+
+namespace typemerge::app {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string number(double value) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6g", value);
+  return text;
+}
+
+// Runs one step, then records its time, triangle count and the full validity check.
+template <typename Step>
+void run_step(SurfaceResult& result, const std::string& name, Step&& step) {
+  const auto start = Clock::now();
+  StepSummary summary;
+  summary.step = name;
+  summary.details = step(result.mesh);
+  summary.milliseconds = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+  summary.triangles = result.mesh.triangles.size();
+  summary.check = core::check_mesh(result.mesh);
+  result.steps.push_back(std::move(summary));
+}
+
+using Details = std::vector<std::pair<std::string, std::string>>;
+
+Details component_details(const mesh::ComponentReport& report) {
+  return {{"components_before", std::to_string(report.components_before)},
+          {"components_after", std::to_string(report.components_after)},
+          {"removed_components", std::to_string(report.removed_components)},
+          {"removed_volume_mm3", number(report.removed_volume)}};
+}
+
+}  // namespace
+
+SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
+                           const PipelineOptions& options) {
+  SurfaceResult result;
+  core::ExtractOptions extract;
+  extract.close_borders = options.close_borders;
+  extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
+                                                : core::ExtractOptions::Mode::consistent;
+
+  run_step(result, "extract (" + options.algorithm + ")", [&](core::TriangleMesh& mesh) {
+    // A window becomes the field min(v − lo, hi − v) at iso 0 (core/window_field.h).
+    const bool window = spec.hi.has_value();
+    core::Volume field;
+    if (window) {
+      field = core::window_field(volume, static_cast<float>(spec.lo),
+                                 static_cast<float>(*spec.hi));
+    }
+    const core::Volume& source = window ? field : volume;
+    const float iso = window ? 0.0f : static_cast<float>(spec.lo);
+    Details details;
+    if (options.algorithm == "tm") {
+      core::MergeStats stats;
+      mesh = core::extract_type_merged(source, iso, extract, {}, &stats);
+      details = {{"mc_triangles", std::to_string(stats.triangles_before)},
+                 {"merged_cubes", std::to_string(stats.cubes_merged_by_type[0] +
+                                                 stats.cubes_merged_by_type[1] +
+                                                 stats.cubes_merged_by_type[2])}};
+    } else {
+      mesh = core::extract_isosurface(source, iso, extract);
+    }
+    core::to_patient(mesh, volume.geometry());
+    return details;
+  });
+
+  const FinishOptions& finish = options.finish;
+  if (!finish.enabled || result.mesh.empty()) return result;
+
+  const double min_volume = finish.min_component_mm3.value_or(spec.min_component_mm3);
+  if (finish.keep_largest) {
+    run_step(result, "keep largest component", [](core::TriangleMesh& mesh) {
+      return component_details(mesh::keep_largest_component(mesh));
+    });
+  } else if (min_volume > 0) {
+    run_step(result, "remove components under " + number(min_volume) + " mm3",
+             [&](core::TriangleMesh& mesh) {
+               return component_details(mesh::remove_small_components(mesh, min_volume));
+             });
+  }
+  if (finish.fill_cavities.value_or(spec.fill_cavities) && !finish.keep_largest) {
+    run_step(result, "fill cavities", [](core::TriangleMesh& mesh) {
+      return component_details(mesh::fill_cavities(mesh));
+    });
+  }
+  if (finish.smooth_iterations > 0) {
+    run_step(result, "Taubin smoothing", [&](core::TriangleMesh& mesh) {
+      mesh::SmoothingOptions smoothing;
+      smoothing.iterations = finish.smooth_iterations;
+      const auto report = mesh::smooth_mesh(mesh, smoothing);
+      return Details{{"iterations", std::to_string(report.iterations)},
+                     {"relative_volume_change", number(report.relative_volume_change)}};
+    });
+  }
+  if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
+    run_step(result, "quadric decimation", [&](core::TriangleMesh& mesh) {
+      mesh::DecimationOptions decimation;
+      decimation.target_triangles = finish.reduce_to_triangles;
+      if (finish.max_error_mm > 0) decimation.max_error = finish.max_error_mm;
+      const auto report = mesh::decimate_mesh(mesh, decimation);
+      for (const auto& w : report.warnings) result.warnings.push_back("decimation: " + w);
+      return Details{{"triangles_before", std::to_string(report.triangles_before)},
+                     {"max_error_mm", number(report.max_error)},
+                     {"reached_target", report.reached_target ? "yes" : "no"}};
+    });
+  }
+  if (!result.steps.back().check.closed_manifold()) {
+    const auto problems = mesh::check_validity(result.mesh).problems();
+    for (const auto& p : problems) result.warnings.push_back("final mesh: " + p);
+  }
+  return result;
+}
+
+}  // namespace typemerge::app

@@ -1,0 +1,61 @@
+// The surface part of `convert`: extraction → patient space → finishing, each step timed and
+// validated, for one tissue. Composes core (extraction, type merging) and mesh (OpenMesh
+// finishing); knows nothing of files or the command line.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/mesh_checks.h"
+#include "core/volume.h"
+
+namespace typemerge::app {
+
+// What to extract: value >= lo, or lo <= value <= hi.
+struct SurfaceSpec {
+  std::string name;  // file stem: the preset name, "iso" or "window"
+  std::string label; // for messages: "preset bone", "iso 300 HU"
+  double lo = 0;
+  std::optional<double> hi;
+  bool from_preset = false;
+  double min_component_mm3 = 0;  // preset default for finishing
+  bool fill_cavities = false;    // preset default for finishing
+};
+
+struct FinishOptions {
+  bool enabled = true;                       // --finish none turns every step off
+  std::optional<double> min_component_mm3;   // overrides the preset's
+  bool keep_largest = false;
+  std::optional<bool> fill_cavities;         // overrides the preset's
+  int smooth_iterations = 0;                 // Taubin; 0 = off
+  std::size_t reduce_to_triangles = 0;       // quadric decimation target; 0 = off
+  double max_error_mm = 0.0;                 // decimation error bound; 0 = off
+};
+
+struct PipelineOptions {
+  std::string algorithm = "tm";  // tm | mc | classic
+  bool close_borders = true;
+  FinishOptions finish;
+};
+
+struct StepSummary {
+  std::string step;
+  double milliseconds = 0;
+  std::size_t triangles = 0;  // after the step
+  core::MeshCheck check;      // after the step
+  std::vector<std::pair<std::string, std::string>> details;
+};
+
+struct SurfaceResult {
+  core::TriangleMesh mesh;  // LPS mm
+  std::vector<StepSummary> steps;
+  std::vector<std::string> warnings;
+};
+
+SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
+                           const PipelineOptions& options);
+
+}  // namespace typemerge::app
