@@ -41,20 +41,21 @@ std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
       throw CommandError{kExitUsage, "unknown preset '" + name + "' (see `typemerge presets`)"};
     }
     SurfaceSpec spec{preset->name, "preset " + preset->name, preset->lo, std::nullopt, true,
-                     preset->min_component_mm3, preset->fill_cavities};
+                     preset->min_component_mm3, preset->fill_cavities, preset->keep_largest};
     if (std::isfinite(preset->hi)) spec.hi = preset->hi;
     specs.push_back(spec);
   }
   if (options.iso) {
     char label[64];
     std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
-    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false});
+    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false});
   }
   if (options.window.size() == 2) {
     if (!(options.window[0] <= options.window[1])) {
       throw CommandError{kExitUsage, "--window LO,HI needs LO <= HI"};
     }
-    specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false});
+    specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false,
+                     false});
   }
   if (specs.empty()) {
     throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};

@@ -26,6 +26,9 @@ struct Preset {
   // under this volume), and for skin keep one outer shell.
   double min_component_mm3 = 0;
   bool fill_cavities = false;
+  // Skin is one shell: the largest by enclosed volume, which also drops the scanner table and
+  // the walls of air cavities inside the body (measured on the abdomen series: 2179 → 1).
+  bool keep_largest = false;
 };
 
 const std::vector<Preset>& presets();

@@ -84,7 +84,8 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   if (!finish.enabled || result.mesh.empty()) return result;
 
   const double min_volume = finish.min_component_mm3.value_or(spec.min_component_mm3);
-  if (finish.keep_largest) {
+  const bool keep_largest = finish.keep_largest || spec.keep_largest;
+  if (keep_largest) {
     run_step(result, "keep largest component", [](core::TriangleMesh& mesh) {
       return component_details(mesh::keep_largest_component(mesh));
     });
@@ -94,7 +95,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                return component_details(mesh::remove_small_components(mesh, min_volume));
              });
   }
-  if (finish.fill_cavities.value_or(spec.fill_cavities) && !finish.keep_largest) {
+  if (finish.fill_cavities.value_or(spec.fill_cavities) && !keep_largest) {
     run_step(result, "fill cavities", [](core::TriangleMesh& mesh) {
       return component_details(mesh::fill_cavities(mesh));
     });

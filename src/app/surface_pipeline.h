@@ -23,6 +23,7 @@ struct SurfaceSpec {
   bool from_preset = false;
   double min_component_mm3 = 0;  // preset default for finishing
   bool fill_cavities = false;    // preset default for finishing
+  bool keep_largest = false;     // preset default for finishing
 };
 
 struct FinishOptions {
