@@ -17,7 +17,7 @@
 #include "dicom/series_loader.h"
 #include "io/atomic_file.h"
 #include "io/preview_png.h"
-#include "io/stl_writer.h"
+#include "io/mesh_writers.h"
 #include "preprocess/crop.h"
 #include "preprocess/denoise.h"
 #include "preprocess/resample.h"
@@ -106,8 +106,34 @@ ordered_json record_json(const preprocess::StepRecord& record, double ms) {
 
 // Output path for one surface: OUT itself for one surface, OUT/<name>.stl for several.
 fs::path stl_path(const ConvertOptions& options, const SurfaceSpec& spec, std::size_t count) {
-  if (count == 1 && fs::path(options.output).extension() == ".stl") return options.output;
+  if (count == 1 && fs::path(options.output).has_extension()) return options.output;
   return fs::path(options.output) / (spec.name + ".stl");
+}
+
+// The output frame: LPS as extracted, or RAS (x and y negated: a rotation, so windings stay
+// outward), optionally translated so the bounding box is centred on the origin.
+void to_output_space(core::TriangleMesh& mesh, const ConvertOptions& options) {
+  if (options.space == "ras") {
+    for (auto& p : mesh.positions) {
+      p[0] = -p[0];
+      p[1] = -p[1];
+    }
+    for (auto& n : mesh.normals) {
+      n[0] = -n[0];
+      n[1] = -n[1];
+    }
+  }
+  if (!options.center || mesh.positions.empty()) return;
+  std::array<float, 3> lo = mesh.positions.front(), hi = lo;
+  for (const auto& p : mesh.positions) {
+    for (int c = 0; c < 3; ++c) {
+      lo[c] = std::min(lo[c], p[c]);
+      hi[c] = std::max(hi[c], p[c]);
+    }
+  }
+  for (auto& p : mesh.positions) {
+    for (int c = 0; c < 3; ++c) p[c] -= 0.5f * (lo[c] + hi[c]);
+  }
 }
 
 }  // namespace
@@ -161,6 +187,12 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
   command->add_flag("--crop-tissue", options.crop_to_tissue,
                     "Crop to the bounding box of the body (> -400 HU) first");
   command->add_flag("--preview", options.preview, "Also write a shaded PNG beside each STL");
+  command->add_flag("--ascii", options.ascii_stl, "ASCII STL instead of binary");
+  command->add_option("--space", options.space,
+                      "Coordinates of the output: lps (DICOM, 3D Slicer's STL default) or ras")
+      ->check(CLI::IsMember({"lps", "ras"}));
+  command->add_flag("--center", options.center,
+                    "Move the surface so its bounding box is centred on 0 (for printing)");
   command->add_option("--report", options.report, "Write a JSON report of the run");
 }
 
@@ -172,6 +204,11 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     fs::create_directories(options.output, error);
     if (error) throw CommandError{kExitOutputFailed, "cannot create " + options.output};
   } else {
+    try {
+      io::mesh_format_for(stl_path(options, specs[0], 1), options.ascii_stl);
+    } catch (const std::invalid_argument& error) {
+      throw CommandError{kExitUsage, error.what()};
+    }
     const fs::path parent = fs::path(stl_path(options, specs[0], 1)).parent_path();
     if (!parent.empty() && !fs::is_directory(parent)) {
       throw CommandError{kExitOutputFailed, "output folder " + parent.string() + " does not exist"};
@@ -268,8 +305,15 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     const fs::path stl = stl_path(options, spec, specs.size());
     const auto write_start = Clock::now();
     try {
-      io::write_binary_stl(result.mesh, stl, io::stl_header(kVersion, "LPS"));
+      // The preview always shows the LPS surface, so its views are anatomical.
       if (options.preview) io::write_preview_png(result.mesh, fs::path(stl).replace_extension(".png"));
+      to_output_space(result.mesh, options);
+      const std::string space = options.space == "ras" ? "RAS" : "LPS";
+      io::write_mesh(result.mesh, stl, io::mesh_format_for(stl, options.ascii_stl),
+                     std::string("typemerge ") + kVersion + " SPACE=" + space +
+                         (options.center ? " CENTERED" : ""));
+    } catch (const std::invalid_argument& error) {
+      throw CommandError{kExitUsage, error.what()};
     } catch (const std::runtime_error& error) {
       throw CommandError{kExitOutputFailed, error.what()};
     }

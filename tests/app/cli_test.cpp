@@ -316,3 +316,36 @@ TEST(Cli, TypeMergingHalvesTrianglesAndStaysClosed) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(Cli, FormatsAndSpaces) {
+  const fs::path dir = write_ball_series("formats");
+  const fs::path out = fresh_dir("formats_out");
+  const std::string base = "convert " + dir.string() + " --iso 0 -o ";
+  ASSERT_EQ(run(base + (out / "b.ply").string()).exit_code, 0);
+  ASSERT_EQ(run(base + (out / "b.obj").string()).exit_code, 0);
+  ASSERT_EQ(run(base + (out / "lps.stl").string() + " --ascii").exit_code, 0);
+  ASSERT_EQ(run(base + (out / "ras.stl").string() + " --ascii --space ras").exit_code, 0);
+  EXPECT_EQ(run(base + (out / "b.vtk").string()).exit_code, 2);
+  auto text = [](const fs::path& file) {
+    std::ifstream in(file);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(text(out / "b.ply").rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
+  EXPECT_NE(text(out / "b.obj").find("\nf "), std::string::npos);
+  // ASCII STL in RAS is the LPS one with x and y negated, and still closed and outward.
+  const auto lps = nlohmann::json::parse(run("stats --json " + (out / "lps.stl").string()).out);
+  const auto ras = nlohmann::json::parse(run("stats --json " + (out / "ras.stl").string()).out);
+  EXPECT_TRUE(ras["closed_manifold"].get<bool>());
+  EXPECT_NEAR(ras["volume_mm3"].get<double>(), lps["volume_mm3"].get<double>(), 1e-3);
+  EXPECT_GT(ras["volume_mm3"].get<double>(), 0.0);
+  const std::string ras_text = text(out / "ras.stl");
+  const std::size_t at = ras_text.find("vertex ");
+  float x = 0, y = 0, z = 0;
+  ASSERT_EQ(std::sscanf(ras_text.c_str() + at, "vertex %f %f %f", &x, &y, &z), 3);
+  EXPECT_GT(x, 100 - 0.6 * 16);  // the ball sits near x = −97 LPS, so near +97 RAS
+  EXPECT_LT(y, -50 - 0.5 * 2);
+}
+
+}  // namespace
