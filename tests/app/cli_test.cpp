@@ -349,3 +349,59 @@ TEST(Cli, FormatsAndSpaces) {
 }
 
 }  // namespace
+
+namespace {
+
+// The surface lines up with the volume in LPS: every vertex of the STL, mapped into the NRRD's
+// index space with the NRRD's own origin and directions, lies where the (trilinearly
+// interpolated) HU volume crosses the iso value.
+TEST(Cli, SurfaceLinesUpWithTheNrrdVolume) {
+  const fs::path dir = write_ball_series("align");
+  const fs::path out = fresh_dir("align_out");
+  ASSERT_EQ(run("volume " + dir.string() + " --float -o " + (out / "v.nrrd").string()).exit_code, 0);
+  ASSERT_EQ(run("convert " + dir.string() + " --iso 0 --finish none -o " +
+                (out / "s.stl").string()).exit_code, 0);
+  std::ifstream nrrd_in(out / "v.nrrd", std::ios::binary);
+  const std::string nrrd((std::istreambuf_iterator<char>(nrrd_in)), std::istreambuf_iterator<char>());
+  const std::size_t end = nrrd.find("\n\n");
+  double origin[3], axes[3][3];
+  const std::size_t at_origin = nrrd.find("space origin: ");
+  ASSERT_EQ(std::sscanf(nrrd.c_str() + at_origin, "space origin: (%lf,%lf,%lf)", &origin[0],
+                        &origin[1], &origin[2]), 3);
+  const std::size_t at_axes = nrrd.find("space directions: ");
+  ASSERT_EQ(std::sscanf(nrrd.c_str() + at_axes,
+                        "space directions: (%lf,%lf,%lf) (%lf,%lf,%lf) (%lf,%lf,%lf)",
+                        &axes[0][0], &axes[0][1], &axes[0][2], &axes[1][0], &axes[1][1],
+                        &axes[1][2], &axes[2][0], &axes[2][1], &axes[2][2]), 9);
+  const int nx = 20, ny = 16, nz = 10;
+  auto sample = [&](int i, int j, int k) {
+    float v = 0;
+    std::memcpy(&v, nrrd.data() + end + 2 + 4 * (i + nx * (j + ny * k)), 4);
+    return double(v);
+  };
+  std::ifstream stl_in(out / "s.stl", std::ios::binary);
+  const std::string stl((std::istreambuf_iterator<char>(stl_in)), std::istreambuf_iterator<char>());
+  std::uint32_t count = 0;
+  std::memcpy(&count, stl.data() + 80, 4);
+  ASSERT_GT(count, 100u);
+  double worst = 0;
+  for (std::uint32_t t = 0; t < count; ++t) {
+    float p[3];
+    std::memcpy(p, stl.data() + 84 + 50 * t + 12, 12);
+    // The axes are diagonal for this axial series: index = (p − origin) / spacing.
+    const double fi = (p[0] - origin[0]) / axes[0][0], fj = (p[1] - origin[1]) / axes[1][1],
+                 fk = (p[2] - origin[2]) / axes[2][2];
+    const int i = std::min(int(fi), nx - 2), j = std::min(int(fj), ny - 2), k = std::min(int(fk), nz - 2);
+    const double u = fi - i, v = fj - j, w = fk - k;
+    double value = 0;
+    for (int c = 0; c < 8; ++c) {
+      const int di = c & 1, dj = (c >> 1) & 1, dk = (c >> 2) & 1;
+      value += (di ? u : 1 - u) * (dj ? v : 1 - v) * (dk ? w : 1 - w) * sample(i + di, j + dj, k + dk);
+    }
+    worst = std::max(worst, std::abs(value));
+  }
+  // 2000 HU across a voxel: 0.1% of an edge (the tie margin) plus float rounding is a few HU.
+  EXPECT_LT(worst, 10.0);
+}
+
+}  // namespace
