@@ -216,20 +216,10 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   }
 
   ordered_json report = {{"tool", "typemerge"}, {"version", kVersion}};
-  dicom::FolderScan scan;
-  try {
-    scan = dicom::scan_folder(options.input.input, options.input.scan_options());
-  } catch (const std::runtime_error& error) {
-    throw CommandError{kExitInputRefused, error.what()};
-  }
-  const dicom::SeriesInfo& series = select_series(scan, options.series_id);
-  dicom::LoadedSeries loaded;
   const auto load_start = Clock::now();
-  try {
-    loaded = dicom::load_series(series);
-  } catch (const dicom::LoadError& error) {
-    throw CommandError{kExitInputRefused, error.what()};
-  }
+  LoadedInput input = load_input(options.input, options.series_id);
+  const dicom::SeriesInfo& series = *input.series;
+  dicom::LoadedSeries& loaded = input.loaded;
   const double load_ms = ms_since(load_start);
   for (const auto& w : loaded.warnings) log << "warning: " << w << "\n";
   const auto& size = loaded.volume.size();

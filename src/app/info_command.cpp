@@ -157,12 +157,7 @@ void add_info_command(CLI::App& app, InfoOptions& options) {
 }
 
 int run_info(const InfoOptions& options, std::ostream& out) {
-  dicom::FolderScan scan;
-  try {
-    scan = dicom::scan_folder(options.input.input, options.input.scan_options());
-  } catch (const std::runtime_error& error) {
-    throw CommandError{kExitInputRefused, error.what()};
-  }
+  const dicom::FolderScan scan = scan_input(options.input);
   std::vector<SeriesValues> values;
   for (const auto& series : scan.series) values.push_back(load_values(series));
 

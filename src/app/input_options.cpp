@@ -57,4 +57,24 @@ const dicom::SeriesInfo& select_series(const dicom::FolderScan& scan,
   return scan.series[*scan.default_series];
 }
 
+dicom::FolderScan scan_input(const InputOptions& options) {
+  try {
+    return dicom::scan_folder(options.input, options.scan_options());
+  } catch (const std::runtime_error& error) {
+    throw CommandError{kExitInputRefused, error.what()};
+  }
+}
+
+LoadedInput load_input(const InputOptions& options, const std::string& series_id) {
+  LoadedInput input;
+  input.scan = scan_input(options);
+  input.series = &select_series(input.scan, series_id);
+  try {
+    input.loaded = dicom::load_series(*input.series);
+  } catch (const dicom::LoadError& error) {
+    throw CommandError{kExitInputRefused, error.what()};
+  }
+  return input;
+}
+
 }  // namespace typemerge::app

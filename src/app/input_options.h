@@ -24,6 +24,17 @@ struct InputOptions {
 
 void add_input_options(CLI::App& command, InputOptions& options);
 
+// The folder scanned, the series chosen and its volume loaded; what volume and convert share.
+struct LoadedInput {
+  dicom::FolderScan scan;
+  const dicom::SeriesInfo* series = nullptr;  // points into scan
+  dicom::LoadedSeries loaded;
+};
+
+// Throws CommandError (input refused) with the loader's one-line reason.
+dicom::FolderScan scan_input(const InputOptions& options);
+LoadedInput load_input(const InputOptions& options, const std::string& series_id);
+
 // Scans the folder and picks the series: `series_id` if given, else the default one.
 // Throws CommandError (input refused) with the reason when there is none to load.
 const dicom::SeriesInfo& select_series(const dicom::FolderScan& scan, const std::string& series_id);

@@ -21,19 +21,9 @@ void add_volume_command(CLI::App& app, VolumeOptions& options) {
 }
 
 int run_volume(const VolumeOptions& options, std::ostream& log) {
-  dicom::FolderScan scan;
-  try {
-    scan = dicom::scan_folder(options.input.input, options.input.scan_options());
-  } catch (const std::runtime_error& error) {
-    throw CommandError{kExitInputRefused, error.what()};
-  }
-  const dicom::SeriesInfo& series = select_series(scan, options.series_id);
-  dicom::LoadedSeries loaded;
-  try {
-    loaded = dicom::load_series(series);
-  } catch (const dicom::LoadError& error) {
-    throw CommandError{kExitInputRefused, error.what()};
-  }
+  LoadedInput input = load_input(options.input, options.series_id);
+  const dicom::SeriesInfo& series = *input.series;
+  dicom::LoadedSeries& loaded = input.loaded;
   // int16 would silently round a fractional rescale; say so rather than lose it unnoticed.
   bool fractional = false;
   for (float v : loaded.volume.samples()) {

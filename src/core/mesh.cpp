@@ -42,4 +42,24 @@ void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry) {
   }
 }
 
+std::array<double, 3> triangle_area_vector(const TriangleMesh& mesh,
+                                           const std::array<std::uint32_t, 3>& triangle) {
+  const auto& p0 = mesh.positions[triangle[0]];
+  const auto& p1 = mesh.positions[triangle[1]];
+  const auto& p2 = mesh.positions[triangle[2]];
+  const double a[3] = {double{p1[0]} - p0[0], double{p1[1]} - p0[1], double{p1[2]} - p0[2]};
+  const double b[3] = {double{p2[0]} - p0[0], double{p2[1]} - p0[1], double{p2[2]} - p0[2]};
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+std::array<double, 3> facet_normal(const TriangleMesh& mesh,
+                                   const std::array<std::uint32_t, 3>& triangle) {
+  std::array<double, 3> n = triangle_area_vector(mesh, triangle);
+  const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+  if (length > 0) {
+    for (double& x : n) x /= length;
+  }
+  return n;
+}
+
 }  // namespace typemerge::core

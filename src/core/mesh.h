@@ -29,4 +29,14 @@ struct TriangleMesh {
 // Precondition: geometry.determinant() != 0.
 void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry);
 
+// (p1 − p0) × (p2 − p0) of a triangle, in double: its length is twice the area and its
+// direction the outward normal for an outward-wound triangle. The one place every area,
+// facet normal and degeneracy test of the project is computed.
+std::array<double, 3> triangle_area_vector(const TriangleMesh& mesh,
+                                           const std::array<std::uint32_t, 3>& triangle);
+
+// The unit facet normal, or (0, 0, 0) for a zero-area triangle.
+std::array<double, 3> facet_normal(const TriangleMesh& mesh,
+                                   const std::array<std::uint32_t, 3>& triangle);
+
 }  // namespace typemerge::core

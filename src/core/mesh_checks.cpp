@@ -69,16 +69,13 @@ MeshCheck check_mesh(const TriangleMesh& mesh) {
       continue;
     }
     valid.push_back(t);
-    const auto& p0 = mesh.positions[t[0]];
-    const auto& p1 = mesh.positions[t[1]];
-    const auto& p2 = mesh.positions[t[2]];
-    const double a[3] = {double{p1[0]} - p0[0], double{p1[1]} - p0[1], double{p1[2]} - p0[2]};
-    const double b[3] = {double{p2[0]} - p0[0], double{p2[1]} - p0[1], double{p2[2]} - p0[2]};
-    const double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                         a[0] * b[1] - a[1] * b[0]};
+    const std::array<double, 3> c = triangle_area_vector(mesh, t);
     if (c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0) ++check.degenerate_triangles;
     check.area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     // Signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2) / 6.
+    const auto& p0 = mesh.positions[t[0]];
+    const auto& p1 = mesh.positions[t[1]];
+    const auto& p2 = mesh.positions[t[2]];
     const double q1[3] = {p1[0], p1[1], p1[2]};
     const double q2[3] = {p2[0], p2[1], p2[2]};
     check.volume +=

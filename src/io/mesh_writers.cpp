@@ -35,27 +35,11 @@ class TextBuffer {
   std::string text_;
 };
 
-std::array<double, 3> facet_normal(const core::TriangleMesh& mesh,
-                                   const std::array<std::uint32_t, 3>& t) {
-  const auto& a = mesh.positions[t[0]];
-  const auto& b = mesh.positions[t[1]];
-  const auto& c = mesh.positions[t[2]];
-  const double u[3] = {double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]};
-  const double v[3] = {double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]};
-  std::array<double, 3> n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2],
-                          u[0] * v[1] - u[1] * v[0]};
-  const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  if (length > 0) {
-    for (double& x : n) x /= length;
-  }
-  return n;
-}
-
 void write_ascii_stl(const core::TriangleMesh& mesh, AtomicFile& file, const std::string& comment) {
   TextBuffer out(file);
   out.print("solid %s\n", comment.c_str());
   for (const auto& t : mesh.triangles) {
-    const auto n = facet_normal(mesh, t);
+    const auto n = core::facet_normal(mesh, t);
     out.print(" facet normal %.9g %.9g %.9g\n  outer loop\n", n[0], n[1], n[2]);
     for (std::uint32_t v : t) {
       const auto& p = mesh.positions[v];

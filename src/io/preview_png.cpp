@@ -50,15 +50,8 @@ void render(const core::TriangleMesh& mesh, const View& view, const std::array<P
     const Point b = project(mesh.positions[t[1]]);
     const Point c = project(mesh.positions[t[2]]);
     // Shade by the facet normal in patient space against a light from the viewer and above.
-    const auto& pa = mesh.positions[t[0]];
-    const auto& pb = mesh.positions[t[1]];
-    const auto& pc = mesh.positions[t[2]];
-    const Point u{double(pb[0]) - pa[0], double(pb[1]) - pa[1], double(pb[2]) - pa[2]};
-    const Point v{double(pc[0]) - pa[0], double(pc[1]) - pa[1], double(pc[2]) - pa[2]};
-    Point n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-    const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (length == 0) continue;
-    for (double& x : n) x /= length;
+    const Point n = core::facet_normal(mesh, t);
+    if (n[0] == 0 && n[1] == 0 && n[2] == 0) continue;
     Point light{0, 0, 0.5};
     light[view.depth_axis] = -view.depth_sign;  // towards the viewer
     const double light_length = std::sqrt(light[0] * light[0] + light[1] * light[1] + light[2] * light[2]);

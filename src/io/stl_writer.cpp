@@ -21,18 +21,6 @@ static_assert(std::endian::native == std::endian::little, "STL is little endian"
 constexpr std::size_t kHeaderBytes = 80;
 constexpr std::size_t kTriangleBytes = 50;
 
-std::array<float, 3> facet_normal(const std::array<float, 3>& a, const std::array<float, 3>& b,
-                                  const std::array<float, 3>& c) {
-  const double u[3] = {double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]};
-  const double v[3] = {double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]};
-  double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-  const double length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-  if (length > 0) {
-    for (double& x : n) x /= length;
-  }
-  return {float(n[0]), float(n[1]), float(n[2])};
-}
-
 // Welds corners by exact coordinate bits: the writer emits shared vertices bit-identically.
 struct CornerKey {
   std::array<std::uint32_t, 3> bits;
@@ -87,7 +75,8 @@ void write_binary_stl(const core::TriangleMesh& mesh, const std::filesystem::pat
     const auto& a = mesh.positions[t[0]];
     const auto& b = mesh.positions[t[1]];
     const auto& c = mesh.positions[t[2]];
-    const auto n = facet_normal(a, b, c);
+    const auto normal = core::facet_normal(mesh, t);
+    const std::array<float, 3> n{float(normal[0]), float(normal[1]), float(normal[2])};
     char* record = block.data() + used * kTriangleBytes;
     std::memcpy(record, n.data(), 12);
     std::memcpy(record + 12, a.data(), 12);

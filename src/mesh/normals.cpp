@@ -12,13 +12,7 @@ void compute_vertex_normals(core::TriangleMesh& mesh) {
   std::vector<std::array<double, 3>> sums(n, {0.0, 0.0, 0.0});
   for (const auto& t : mesh.triangles) {
     assert(t[0] < n && t[1] < n && t[2] < n);
-    const auto& p0 = mesh.positions[t[0]];
-    const auto& p1 = mesh.positions[t[1]];
-    const auto& p2 = mesh.positions[t[2]];
-    const double a[3] = {double{p1[0]} - p0[0], double{p1[1]} - p0[1], double{p1[2]} - p0[2]};
-    const double b[3] = {double{p2[0]} - p0[0], double{p2[1]} - p0[1], double{p2[2]} - p0[2]};
-    const double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                         a[0] * b[1] - a[1] * b[0]};
+    const std::array<double, 3> c = core::triangle_area_vector(mesh, t);
     for (const std::uint32_t v : t) {
       for (int k = 0; k < 3; ++k) sums[v][k] += c[k];
     }
