@@ -2,7 +2,13 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <fcntl.h>
+#include <signal.h>
+#include <unistd.h>
+
 #include <array>
+#include <chrono>
+#include <thread>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
@@ -402,6 +408,54 @@ TEST(Cli, SurfaceLinesUpWithTheNrrdVolume) {
   }
   // 2000 HU across a voxel: 0.1% of an edge (the tie margin) plus float rounding is a few HU.
   EXPECT_LT(worst, 10.0);
+}
+
+}  // namespace
+
+namespace {
+
+// Kills convert at moments spread over a whole run; under its final name there is then either
+// nothing or a complete, valid surface — never a truncated file.
+TEST(Cli, KilledRunsLeaveNoPartialOutput) {
+  const fs::path out = fresh_dir("kill_out");
+  const fs::path stl = out / "bone.stl";
+  const std::string sample = std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series";
+  auto start = [&] {
+    const pid_t pid = fork();
+    if (pid == 0) {
+      const int null = ::open("/dev/null", O_WRONLY);
+      dup2(null, 1);
+      dup2(null, 2);
+      execl(TYPEMERGE_EXE, TYPEMERGE_EXE, "convert", sample.c_str(), "--preset", "bone", "--ascii",
+            "-o", stl.c_str(), static_cast<char*>(nullptr));
+      _exit(127);
+    }
+    return pid;
+  };
+  // One full run for the duration, and the reference result.
+  const auto t0 = std::chrono::steady_clock::now();
+  int status = 0;
+  waitpid(start(), &status, 0);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  const double full_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const auto complete_size = fs::file_size(stl);
+
+  int killed = 0;
+  for (int attempt = 0; attempt < 20; ++attempt) {
+    fs::remove(stl);
+    const pid_t pid = start();
+    const double at = full_ms * (0.3 + 0.75 * attempt / 20.0);  // late: during the writes
+    std::this_thread::sleep_for(std::chrono::microseconds(static_cast<long>(at * 1000)));
+    killed += ::kill(pid, SIGKILL) == 0;
+    waitpid(pid, &status, 0);
+    if (fs::exists(stl)) {
+      EXPECT_EQ(fs::file_size(stl), complete_size) << "truncated output after a kill at " << at;
+      const auto stats = nlohmann::json::parse(run("stats --json " + stl.string()).out);
+      EXPECT_TRUE(stats["closed_manifold"].get<bool>());
+    }
+  }
+  EXPECT_GT(killed, 0);
 }
 
 }  // namespace
