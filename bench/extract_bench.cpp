@@ -1,12 +1,15 @@
 // extract_bench: surface extraction speed and quality on a real series or a synthetic volume.
 //
-//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic] [--repeat 5]
+//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm] [--threads 1,2]
+//                 [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //
-// Prints, per volume × iso × algorithm: median wall time, cells/s, triangles, vertices, the
-// peak resident memory added during extraction, and the validity of the surface (boundary,
-// non-manifold and degenerate counts). The same volume can be written as NRRD for
-// bench/vtk_extract.py, so that VTK's filters run on identical samples for a side-by-side ratio.
+// Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,
+// vertices, the peak resident memory added during extraction, and the validity of the surface
+// (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
+// mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
+// mm; for mc the ambiguity statistics of the paper's Table 4. The same volume can be written as
+// NRRD for bench/vtk_extract.py, so that VTK's filters run on identical samples.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,6 +22,8 @@
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
+#include "core/mesh_distance.h"
+#include "core/type_merging.h"
 #include "dicom/series_loader.h"
 #include "io/nrrd_writer.h"
 
@@ -96,14 +101,15 @@ std::vector<std::string> split(const std::string& text) {
 int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
-               "       [--algorithms mc,classic] [--repeat 5] [--write-nrrd FILE]\n");
+               "       [--algorithms mc,classic,tm] [--threads 1,2] [--repeat 5] [--write-nrrd FILE]\n");
   return 2;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic";
+  std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
+              thread_list = "1";
   int repeat = 5;
   for (int a = 1; a + 1 < argc; a += 2) {
     const std::string key = argv[a], value = argv[a + 1];
@@ -113,6 +119,7 @@ int main(int argc, char** argv) {
     else if (key == "--algorithms") algorithms = value;
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else if (key == "--write-nrrd") nrrd_out = value;
+    else if (key == "--threads") thread_list = value;
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
@@ -140,35 +147,74 @@ int main(int argc, char** argv) {
               static_cast<long long>(size.nx), static_cast<long long>(size.ny),
               static_cast<long long>(size.nz), cells / 1e6,
               double(volume.samples().size()) * 4 / (1 << 20));
-  std::printf("%-8s %-8s %10s %10s %11s %10s %12s %9s %9s %9s\n", "iso", "algo", "ms", "Mcells/s",
-              "triangles", "vertices", "peak+ MiB", "boundary", "nonmanif", "degen");
+  std::printf("%-8s %-8s %3s %10s %10s %11s %10s %10s %9s %9s %9s\n", "iso", "algo", "thr", "ms",
+              "Mcells/s", "triangles", "vertices", "peak+MiB", "boundary", "nonmanif", "degen");
   for (const std::string& iso_text : split(iso_list)) {
     const float iso = std::stof(iso_text);
+    core::TriangleMesh reference;  // the mc surface of this iso, for tm's ratio and distances
     for (const std::string& algorithm : split(algorithms)) {
-      core::ExtractOptions options;
-      if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
-      else if (algorithm != "mc") return usage();
-      std::vector<double> times;
-      core::TriangleMesh mesh;
-      long peak_added = 0;
-      for (int r = 0; r < repeat; ++r) {
-        mesh = {};
-        const long before = current_memory_kib();
-        reset_peak_memory();
-        const auto start = std::chrono::steady_clock::now();
-        mesh = core::extract_isosurface(volume, iso, options);
-        const auto end = std::chrono::steady_clock::now();
-        peak_added = std::max(peak_added, peak_memory_kib() - before);
-        times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+      for (const std::string& thread_text : split(thread_list)) {
+        core::ExtractOptions options;
+        options.threads = static_cast<unsigned>(std::stoi(thread_text));
+        core::AmbiguityStats ambiguity;
+        if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
+        else if (algorithm == "mc") options.stats = &ambiguity;
+        else if (algorithm != "tm") return usage();
+        std::vector<double> times;
+        core::TriangleMesh mesh;
+        long peak_added = 0;
+        for (int r = 0; r < repeat; ++r) {
+          mesh = {};
+          ambiguity = {};
+          const long before = current_memory_kib();
+          reset_peak_memory();
+          const auto start = std::chrono::steady_clock::now();
+          mesh = algorithm == "tm" ? core::extract_type_merged(volume, iso, options)
+                                   : core::extract_isosurface(volume, iso, options);
+          const auto end = std::chrono::steady_clock::now();
+          peak_added = std::max(peak_added, peak_memory_kib() - before);
+          times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+        }
+        std::sort(times.begin(), times.end());
+        const double median = times[times.size() / 2];
+        const core::MeshCheck check = core::check_mesh(mesh);
+        std::printf("%-8s %-8s %3s %10.1f %10.1f %11zu %10zu %10.1f %9zu %9zu %9zu\n",
+                    iso_text.c_str(), algorithm.c_str(), thread_text.c_str(), median,
+                    cells / median / 1e3, mesh.triangles.size(), mesh.positions.size(),
+                    double(peak_added) / 1024, check.boundary_edges,
+                    check.non_manifold_edges + check.non_manifold_vertices,
+                    check.degenerate_triangles);
+        if (algorithm == "mc" && thread_text == split(thread_list).front()) {
+          reference = mesh;
+          std::printf("    ambiguity (Table 4): %zu surface cubes; 1/2/3/6-face: %zu/%zu/%zu/%zu; "
+                      "rate %.3f%%\n",
+                      ambiguity.boundary_cubes, ambiguity.cubes_with_ambiguous_faces[1],
+                      ambiguity.cubes_with_ambiguous_faces[2],
+                      ambiguity.cubes_with_ambiguous_faces[3],
+                      ambiguity.cubes_with_ambiguous_faces[6],
+                      100.0 *
+                          double(ambiguity.cubes_with_ambiguous_faces[1] +
+                                 ambiguity.cubes_with_ambiguous_faces[2] +
+                                 ambiguity.cubes_with_ambiguous_faces[3] +
+                                 ambiguity.cubes_with_ambiguous_faces[6]) /
+                          double(std::max<std::size_t>(1, ambiguity.boundary_cubes)));
+        }
+        if (algorithm == "tm" && !reference.empty() && thread_text == split(thread_list).front()) {
+          const core::MeshCheck mc_check = core::check_mesh(reference);
+          const auto voxels = core::mesh_distance(reference, mesh);
+          core::TriangleMesh reference_mm = reference, mesh_mm = mesh;
+          core::to_patient(reference_mm, volume.geometry());
+          core::to_patient(mesh_mm, volume.geometry());
+          const auto mm = core::mesh_distance(reference_mm, mesh_mm);
+          std::printf("    tm/mc triangles %.1f%%; Hausdorff %.3f voxel (%.3f mm), mean %.4f voxel "
+                      "(%.4f mm); Euler %lld vs %lld, components %zu vs %zu\n",
+                      100.0 * double(mesh.triangles.size()) / double(reference.triangles.size()),
+                      voxels.hausdorff(), mm.hausdorff(), voxels.mean(), mm.mean(),
+                      static_cast<long long>(check.euler_characteristic),
+                      static_cast<long long>(mc_check.euler_characteristic), check.components,
+                      mc_check.components);
+        }
       }
-      std::sort(times.begin(), times.end());
-      const double median = times[times.size() / 2];
-      const core::MeshCheck check = core::check_mesh(mesh);
-      std::printf("%-8s %-8s %10.1f %10.1f %11zu %10zu %12.1f %9zu %9zu %9zu\n", iso_text.c_str(),
-                  algorithm.c_str(), median, cells / median / 1e3, mesh.triangles.size(),
-                  mesh.positions.size(), double(peak_added) / 1024, check.boundary_edges,
-                  check.non_manifold_edges + check.non_manifold_vertices,
-                  check.degenerate_triangles);
     }
   }
   return 0;

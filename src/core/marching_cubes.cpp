@@ -2,17 +2,27 @@
 //
 // The volume is swept one cube layer (two neighbouring slices) at a time, in the scan order of
 // spec §1.5 (x fastest, then y, then z). Per layer, in explicit passes:
-//   1. load the upper slice into a padded buffer and classify its samples (inside bytes and
-//      the 4-bit code of every square, so a cube index is two loads and a shift);
+//   1. load the upper slice into a padded buffer and classify its samples (inside bytes), and
+//      trim every row as flying edges does (Schroeder et al. 2015): the first and last cut
+//      x-edge of the row and the state at its two ends. Outside its trim a row is constant, so
+//      every later pass scans, per row, only the x range where some sample it compares can
+//      differ — on CT most rows have no crossing at all and cost one classification;
 //   2. create one surface vertex per cut lattice edge: the x- and y-edges of the upper slice
 //      and the z-edges between the slices. Every cut edge is used by every cube around it, so
 //      vertices are created edge by edge, not on demand, and their ids are stored in per-slice
 //      arrays indexed like the samples — no hashing, memory = mesh + a few slices;
 //   3. triangulate the boundary cubes from the case tables, deciding ambiguous faces.
 // Only the lower slice's buffers are needed from the previous layer, so two slices are kept
-// and swapped. A layer depends on nothing but its two slices, which is what a later parallel
-// version needs: slabs of layers processed independently, their vertices on the shared slice
-// matched by the deterministic edge order.
+// and swapped.
+//
+// Threads (ExtractOptions::threads): a layer depends on nothing but its two slices, so the
+// layers are cut into slabs that are extracted independently, each into its own mesh, and
+// concatenated in slab order. The slice shared by two slabs is classified by both, but its
+// vertices are emitted only by the lower slab: the upper slab numbers them 0..k−1 in the
+// deterministic edge order, which is the order in which the lower slab created them, so
+// the upper slab's references are renumbered onto the lower slab's range. The result —
+// vertex order, triangles, cube records, statistics — is byte for byte the serial one, for
+// any thread and slab count. std::thread rather than TBB or OpenMP: the core is std-only.
 //
 // Padding (close_borders): the sample grid is extended by one sample of value −∞ on every
 // side. −∞ is outside for any iso and makes the interpolated vertex land on the inside end of
@@ -29,6 +39,7 @@
 #include <vector>
 
 #include "core/cube_tables.h"
+#include "core/parallel.h"
 
 namespace typemerge::core {
 
@@ -52,22 +63,40 @@ using VertexId = std::uint32_t;
 constexpr float kPadding = -std::numeric_limits<float>::infinity();
 
 // One padded slice and the vertex ids of its in-plane edges. Entry x + width·y belongs to the
-// sample (x, y), its x-edge (x,y)–(x+1,y), its y-edge (x,y)–(x,y+1) and its square
-// (x,y)–(x+1,y+1). Ids are valid only on cut edges; nothing else is ever read.
+// sample (x, y), its x-edge (x,y)–(x+1,y) and its y-edge (x,y)–(x,y+1). Ids are valid only on
+// cut edges; nothing else is ever read.
+//
+// Row trim of row y: samples x <= first_cut[y] are all `left[y]`, samples x > last_cut[y] are
+// all `right[y]` (the cut x-edges lie in [first_cut, last_cut]); a row without a cut has
+// first_cut = width − 1 and last_cut = −1, and left = right.
 struct Slice {
   std::vector<float> values;
   std::vector<std::uint8_t> inside;
-  std::vector<std::uint8_t> square;  // bits 0..3 = inside of (x,y) (x+1,y) (x+1,y+1) (x,y+1)
   std::vector<VertexId> x_vertex;
   std::vector<VertexId> y_vertex;
+  std::vector<std::int32_t> first_cut;
+  std::vector<std::int32_t> last_cut;
+  std::vector<std::uint8_t> left;
+  std::vector<std::uint8_t> right;
 
-  void resize(std::size_t n) {
+  void resize(std::size_t n, std::size_t rows) {
     values.resize(n);
     inside.resize(n);
-    square.resize(n);
     x_vertex.resize(n);
     y_vertex.resize(n);
+    first_cut.resize(rows);
+    last_cut.resize(rows);
+    left.resize(rows);
+    right.resize(rows);
   }
+};
+
+// Range of x to scan, inclusive, where sample x of one trimmed row can differ from sample x of
+// another (a, b) — or, for cubes, where some of the rows' samples x and x + 1 can differ
+// (`span` = 1). Empty when first > last.
+struct XRange {
+  Index first;
+  Index last;
 };
 
 // Where the vertex of each local cube edge is stored, relative to the cube's entry: in which
@@ -102,54 +131,118 @@ class Extractor {
     }
   }
 
-  TriangleMesh run() {
-    if (options_.stats != nullptr) *options_.stats = {};
-    if (options_.cubes != nullptr) options_.cubes->clear();
-    if (volume_.size().voxels() == 0 || width_ < 2 || height_ < 2 || depth_ < 2) return {};
+  // Cube layers (two neighbouring padded slices) in the volume; 0 when there is no cube.
+  Index layers() const {
+    if (volume_.size().voxels() == 0 || width_ < 2 || height_ < 2 || depth_ < 2) return 0;
+    return depth_ - 1;
+  }
+
+  // Extracts layers [first, last). When first > 0 the vertices of slice `first` belong to the
+  // slab below: they get the local ids 0..shared_vertices_ − 1 and are not part of the output.
+  void run(Index first, Index last) {
     const std::size_t n = static_cast<std::size_t>(width_ * height_);
     Slice lower;
     Slice upper;
-    lower.resize(n);
-    upper.resize(n);
+    lower.resize(n, static_cast<std::size_t>(height_));
+    upper.resize(n, static_cast<std::size_t>(height_));
     z_vertex_.resize(n);
+    codes_.resize(static_cast<std::size_t>(width_));
 
-    load_slice(0, lower);
-    add_slice_vertices(0, lower);
-    for (Index layer = 0; layer + 1 < depth_; ++layer) {
+    load_slice(first, lower);
+    add_slice_vertices(first, lower);
+    shared_vertices_ = first > 0 ? mesh_.positions.size() : 0;
+    for (Index layer = first; layer < last; ++layer) {
       load_slice(layer + 1, upper);
+      last_slice_first_vertex_ = mesh_.positions.size();
       add_slice_vertices(layer + 1, upper);
       add_layer_vertices(layer, lower, upper);
       add_cubes(layer, lower, upper);
       std::swap(lower, upper);
     }
-    if (options_.stats != nullptr) *options_.stats = stats_;
-    return std::move(mesh_);
   }
 
+  TriangleMesh& mesh() { return mesh_; }
+  const AmbiguityStats& stats() const { return stats_; }
+  std::vector<BoundaryCube>& cubes() { return cubes_; }
+  std::size_t shared_vertices() const { return shared_vertices_; }
+  std::size_t last_slice_first_vertex() const { return last_slice_first_vertex_; }
+
  private:
-  // Pass 1: padded copy of slice pz (padded index), inside bytes, square codes.
+  // Pass 1: padded copy of slice pz (padded index), inside bytes, row trims.
   void load_slice(Index pz, Slice& slice) const {
     const VolumeSize& s = volume_.size();
     const Index k = pz - pad_;
-    std::fill(slice.values.begin(), slice.values.end(), kPadding);
     if (k >= 0 && k < s.nz) {
       const float* samples = volume_.slice(k);
+      if (pad_ != 0) {
+        std::fill_n(slice.values.begin(), width_, kPadding);
+        std::fill_n(slice.values.end() - width_, width_, kPadding);
+      }
       for (Index j = 0; j < s.ny; ++j) {
-        std::copy_n(samples + s.nx * j, s.nx, slice.values.begin() + (j + pad_) * width_ + pad_);
+        float* row = slice.values.data() + (j + pad_) * width_;
+        if (pad_ != 0) row[0] = row[width_ - 1] = kPadding;
+        std::copy_n(samples + s.nx * j, s.nx, row + pad_);
       }
+    } else {
+      std::fill(slice.values.begin(), slice.values.end(), kPadding);
     }
-    const std::size_t n = slice.values.size();
-    for (std::size_t i = 0; i < n; ++i) slice.inside[i] = slice.values[i] >= iso_ ? 1 : 0;
-    const std::uint8_t* in = slice.inside.data();
-    for (Index y = 0; y + 1 < height_; ++y) {
-      const std::uint8_t* row = in + y * width_;
-      const std::uint8_t* next = row + width_;
-      std::uint8_t* out = slice.square.data() + y * width_;
-      for (Index x = 0; x + 1 < width_; ++x) {
-        out[x] =
-            static_cast<std::uint8_t>(row[x] | row[x + 1] << 1 | next[x + 1] << 2 | next[x] << 3);
+    const float iso = iso_;
+    for (Index y = 0; y < height_; ++y) {
+      const float* v = slice.values.data() + y * width_;
+      std::uint8_t* in = slice.inside.data() + y * width_;
+      // Two simple loops the compiler vectorises (classify, then count).
+      std::transform(v, v + width_, in, [iso](float f) { return std::uint8_t{f >= iso}; });
+      unsigned count = 0;
+      for (Index x = 0; x < width_; ++x) count += in[x];
+      const auto row = static_cast<std::size_t>(y);
+      slice.left[row] = in[0];
+      slice.right[row] = in[width_ - 1];
+      if (count == 0 || count == static_cast<unsigned>(width_)) {
+        slice.first_cut[row] = static_cast<std::int32_t>(width_ - 1);
+        slice.last_cut[row] = -1;
+        continue;
       }
+      Index first = 0;
+      while (in[first] == in[first + 1]) ++first;
+      Index last = width_ - 2;
+      while (in[last] == in[last + 1]) --last;
+      slice.first_cut[row] = static_cast<std::int32_t>(first);
+      slice.last_cut[row] = static_cast<std::int32_t>(last);
     }
+  }
+
+  // Samples where row ya of slice a and row yb of slice b can differ.
+  XRange pair_range(const Slice& a, Index ya, const Slice& b, Index yb) const {
+    const auto ra = static_cast<std::size_t>(ya);
+    const auto rb = static_cast<std::size_t>(yb);
+    const Index first = a.left[ra] == b.left[rb]
+                            ? Index{std::min(a.first_cut[ra], b.first_cut[rb])} + 1
+                            : 0;
+    const Index last = a.right[ra] == b.right[rb]
+                           ? Index{std::max(a.last_cut[ra], b.last_cut[rb])}
+                           : width_ - 1;
+    return {first, last};
+  }
+
+  // Cubes (x from 0 to width − 2) of the cube row y between `lower` and `upper` whose eight
+  // corners can differ.
+  XRange cube_range(const Slice& lower, const Slice& upper, Index y) const {
+    const auto r0 = static_cast<std::size_t>(y);
+    const auto r1 = r0 + 1;
+    const std::uint8_t l = lower.left[r0];
+    const std::uint8_t r = lower.right[r0];
+    const bool same_left = lower.left[r1] == l && upper.left[r0] == l && upper.left[r1] == l;
+    const bool same_right = lower.right[r1] == r && upper.right[r0] == r && upper.right[r1] == r;
+    const Index first =
+        same_left ? Index{std::min({lower.first_cut[r0], lower.first_cut[r1], upper.first_cut[r0],
+                                    upper.first_cut[r1]})}
+                  : 0;
+    const Index last =
+        same_right ? std::min<Index>(std::max({lower.last_cut[r0], lower.last_cut[r1],
+                                               upper.last_cut[r0], upper.last_cut[r1]}),
+                                     width_ - 2)
+                   : width_ - 2;
+    return {first, last};
   }
 
   // Pass 2a: vertices on the cut x- and y-edges of slice pz.
@@ -157,13 +250,15 @@ class Extractor {
     const std::uint8_t* in = slice.inside.data();
     const float* v = slice.values.data();
     for (Index y = 0; y < height_; ++y) {
-      for (Index x = 0; x + 1 < width_; ++x) {
+      const auto row = static_cast<std::size_t>(y);
+      for (Index x = slice.first_cut[row]; x <= slice.last_cut[row]; ++x) {
         const Index i = x + width_ * y;
         if (in[i] != in[i + 1]) slice.x_vertex[i] = add_edge_vertex(x, y, pz, 0, v[i], v[i + 1]);
       }
     }
     for (Index y = 0; y + 1 < height_; ++y) {
-      for (Index x = 0; x < width_; ++x) {
+      const XRange range = pair_range(slice, y, slice, y + 1);
+      for (Index x = range.first; x <= range.last; ++x) {
         const Index i = x + width_ * y;
         if (in[i] != in[i + width_]) {
           slice.y_vertex[i] = add_edge_vertex(x, y, pz, 1, v[i], v[i + width_]);
@@ -175,7 +270,8 @@ class Extractor {
   // Pass 2b: vertices on the cut z-edges between slice pz and pz + 1.
   void add_layer_vertices(Index pz, const Slice& lower, const Slice& upper) {
     for (Index y = 0; y < height_; ++y) {
-      for (Index x = 0; x < width_; ++x) {
+      const XRange range = pair_range(lower, y, upper, y);
+      for (Index x = range.first; x <= range.last; ++x) {
         const Index i = x + width_ * y;
         if (lower.inside[i] != upper.inside[i]) {
           z_vertex_[i] = add_edge_vertex(x, y, pz, 2, lower.values[i], upper.values[i]);
@@ -186,18 +282,33 @@ class Extractor {
 
   // Pass 3: the boundary cubes of the layer between the two slices.
   void add_cubes(Index layer, const Slice& lower, const Slice& upper) {
-    const std::uint8_t* lower_square = lower.square.data();
-    const std::uint8_t* upper_square = upper.square.data();
+    const std::uint8_t* lower_in = lower.inside.data();
+    const std::uint8_t* upper_in = upper.inside.data();
+    const Index w = width_;
     const std::array<const VertexId*, 5> ids = {lower.x_vertex.data(), lower.y_vertex.data(),
                                                 upper.x_vertex.data(), upper.y_vertex.data(),
                                                 z_vertex_.data()};
+    std::uint8_t* codes = codes_.data();
     for (Index y = 0; y + 1 < height_; ++y) {
-      for (Index x = 0; x + 1 < width_; ++x) {
+      const XRange range = cube_range(lower, upper, y);
+      if (range.first > range.last) continue;
+      // Cube indices of the range in one branch-free (vectorised) loop; bits 0..3: (x,y)
+      // (x+1,y) (x+1,y+1) (x,y+1) of the lower slice, bits 4..7 the same of the upper.
+      const std::uint8_t* l0 = lower_in + width_ * y;
+      const std::uint8_t* l1 = l0 + w;
+      const std::uint8_t* u0 = upper_in + width_ * y;
+      const std::uint8_t* u1 = u0 + w;
+      for (Index x = range.first; x <= range.last; ++x) {
+        codes[x] = static_cast<std::uint8_t>(l0[x] | l0[x + 1] << 1 | l1[x + 1] << 2 |
+                                             l1[x] << 3 | u0[x] << 4 | u0[x + 1] << 5 |
+                                             u1[x + 1] << 6 | u1[x] << 7);
+      }
+      for (Index x = range.first; x <= range.last; ++x) {
         const Index i = x + width_ * y;
-        const unsigned c = static_cast<unsigned>(lower_square[i] | upper_square[i] << 4);
+        const unsigned c = codes[x];
         if (c == 0 || c == 255) continue;
         if (options_.cubes != nullptr) {
-          options_.cubes->push_back({static_cast<std::int32_t>(x - pad_),
+          cubes_.push_back({static_cast<std::int32_t>(x - pad_),
                                      static_cast<std::int32_t>(y - pad_),
                                      static_cast<std::int32_t>(layer - pad_),
                                      static_cast<std::uint8_t>(c),
@@ -367,15 +478,98 @@ class Extractor {
   std::array<int, kCubeEdgeCount> edge_array_{};
   std::array<Index, kCubeEdgeCount> edge_offset_{};
   std::vector<VertexId> z_vertex_;
+  std::vector<std::uint8_t> codes_;  // cube indices of the current cube row
   TriangleMesh mesh_;
   AmbiguityStats stats_;
+  std::vector<BoundaryCube> cubes_;
+  std::size_t shared_vertices_ = 0;          // leading vertices owned by the slab below
+  std::size_t last_slice_first_vertex_ = 0;  // first vertex of the slab's top slice
 };
+
+void add_stats(AmbiguityStats& sum, const AmbiguityStats& s) {
+  sum.boundary_cubes += s.boundary_cubes;
+  for (std::size_t k = 0; k < sum.cubes_with_ambiguous_faces.size(); ++k) {
+    sum.cubes_with_ambiguous_faces[k] += s.cubes_with_ambiguous_faces[k];
+  }
+  sum.joined_faces += s.joined_faces;
+  sum.centroid_vertices += s.centroid_vertices;
+}
 
 }  // namespace
 
 TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOptions& options) {
   assert(volume.samples().size() == static_cast<std::size_t>(volume.size().voxels()));
-  return Extractor(volume, iso, options).run();
+  if (options.stats != nullptr) *options.stats = {};
+  if (options.cubes != nullptr) options.cubes->clear();
+  const unsigned threads = detail::resolve_threads(options.threads);
+
+  const Index layers = Extractor(volume, iso, options).layers();
+  if (layers == 0) return {};
+  // Slabs of at least kMinSlabLayers layers (the shared slice is classified twice), a few per
+  // thread so that uneven layers (bone in a few slices) still balance.
+  constexpr Index kMinSlabLayers = 8;
+  const Index slab_count =
+      threads == 1 ? 1 : std::clamp<Index>(layers / kMinSlabLayers, 1, Index{4} * threads);
+  std::vector<Extractor> slabs;
+  slabs.reserve(static_cast<std::size_t>(slab_count));
+  for (Index k = 0; k < slab_count; ++k) slabs.emplace_back(volume, iso, options);
+  auto first_layer = [&](Index k) { return layers * k / slab_count; };
+  detail::run_parallel(slabs.size(), threads, [&](std::size_t k, unsigned) {
+    const Index slab = static_cast<Index>(k);
+    slabs[k].run(first_layer(slab), first_layer(slab + 1));
+  });
+  if (slab_count == 1) {
+    if (options.stats != nullptr) *options.stats = slabs[0].stats();
+    if (options.cubes != nullptr) *options.cubes = std::move(slabs[0].cubes());
+    return std::move(slabs[0].mesh());
+  }
+
+  // Concatenate: slab k's own vertices start at vertex_base[k]; its shared ids (the slab
+  // below's top slice) map to that slice's range in the slab below.
+  std::vector<std::size_t> vertex_base(slabs.size() + 1, 0);
+  std::vector<std::size_t> triangle_base(slabs.size() + 1, 0);
+  std::vector<std::size_t> cube_base(slabs.size() + 1, 0);
+  for (std::size_t k = 0; k < slabs.size(); ++k) {
+    Extractor& e = slabs[k];
+    vertex_base[k + 1] = vertex_base[k] + e.mesh().positions.size() - e.shared_vertices();
+    triangle_base[k + 1] = triangle_base[k] + e.mesh().triangles.size();
+    cube_base[k + 1] = cube_base[k] + e.cubes().size();
+    if (options.stats != nullptr) add_stats(*options.stats, e.stats());
+  }
+  assert(vertex_base.back() <= std::numeric_limits<VertexId>::max());
+  TriangleMesh mesh;
+  mesh.positions.resize(vertex_base.back());
+  mesh.normals.resize(vertex_base.back());
+  mesh.triangles.resize(triangle_base.back());
+  if (options.cubes != nullptr) options.cubes->resize(cube_base.back());
+  detail::run_parallel(slabs.size(), threads, [&](std::size_t k, unsigned) {
+    Extractor& e = slabs[k];
+    TriangleMesh& part = e.mesh();
+    const std::size_t shared = e.shared_vertices();
+    std::copy(part.positions.begin() + static_cast<std::ptrdiff_t>(shared), part.positions.end(),
+              mesh.positions.begin() + static_cast<std::ptrdiff_t>(vertex_base[k]));
+    std::copy(part.normals.begin() + static_cast<std::ptrdiff_t>(shared), part.normals.end(),
+              mesh.normals.begin() + static_cast<std::ptrdiff_t>(vertex_base[k]));
+    const auto own = static_cast<VertexId>(vertex_base[k] - shared);
+    const auto below =
+        k == 0 ? VertexId{0}
+               : static_cast<VertexId>(vertex_base[k - 1] + slabs[k - 1].last_slice_first_vertex() -
+                                       slabs[k - 1].shared_vertices());
+    auto* out = mesh.triangles.data() + triangle_base[k];
+    for (const auto& tri : part.triangles) {
+      for (int c = 0; c < 3; ++c) (*out)[c] = tri[c] < shared ? below + tri[c] : own + tri[c];
+      ++out;
+    }
+    if (options.cubes != nullptr) {
+      BoundaryCube* cube = options.cubes->data() + cube_base[k];
+      for (BoundaryCube c : e.cubes()) {
+        c.first_triangle += static_cast<std::uint32_t>(triangle_base[k]);
+        *cube++ = c;
+      }
+    }
+    part = TriangleMesh{};  // free as we go: peak is the output plus what is left of the parts
+  });
+  return mesh;
 }
 
 }  // namespace typemerge::core

@@ -65,7 +65,22 @@ struct ExtractOptions {
   // When not null, receives every boundary cube in scan order (z, then y, then x), with the
   // range of mesh triangles it produced. Costs 20 bytes per boundary cube.
   std::vector<BoundaryCube>* cubes = nullptr;
+  // Worker threads: 0 = std::thread::hardware_concurrency(), 1 = serial. The output (vertex
+  // order, triangles, cube records, statistics) is identical for every value.
+  unsigned threads = 1;
 };
+
+// Cost and memory (W × H = padded slice size, (nx + 2)(ny + 2) with close_borders):
+//  * one classification pass over every sample; every later pass visits, per row, only the x
+//    range between the row's first and last crossing (flying-edges trims), so empty rows and
+//    empty stretches of rows cost one comparison per sample;
+//  * peak memory = the output mesh (+ the cube records when requested) + 31 bytes × W × H per
+//    working thread (two slices of values, inside bytes and edge vertex ids, one slice of
+//    z-edge ids) — independent of the number of slices. With threads > 1 the slabs' meshes
+//    are concatenated at the end, so the mesh is held twice for a moment (parts are freed as
+//    they are copied): peak ≤ 2 × mesh + 31 B × W × H × threads.
+//  * threads: slabs of whole cube layers, output byte for byte the serial one (see
+//    ExtractOptions::threads).
 
 // Smallest distance, as a fraction of the edge, between a surface vertex and a sample.
 inline constexpr float kEdgeMargin = 1e-3f;

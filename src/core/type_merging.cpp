@@ -95,10 +95,12 @@ using VertexId = std::uint32_t;
 using TriangleId = std::uint32_t;
 
 constexpr VertexId kNoVertex = std::numeric_limits<VertexId>::max();
+constexpr TriangleId kNoTriangle = std::numeric_limits<TriangleId>::max();
 
 // Largest fan (triangles around one vertex) and link the checks handle; MC fans have at most
 // ~12 triangles, merged vertices a few times that.
 constexpr int kMaxFan = 96;
+static_assert(kMaxFan <= 255, "fan slots are stored in bytes");
 
 // A triangle is a sliver when its height over the longest edge is below this fraction of that
 // edge: collinear up to float rounding of positions that are exactly collinear in theory.
@@ -224,6 +226,8 @@ class Merger {
     const std::size_t m = mesh_.triangles.size();
     parent_.resize(n);
     next_member_.resize(n);
+    witness_.assign(n, kNoTriangle);
+    fan_slot_.assign(m, 0);
     for (VertexId v = 0; v < n; ++v) parent_[v] = next_member_[v] = v;
     alive_.assign(m, 1);
     // CSR: count, prefix sum, fill (flying-edges style exact allocation).
@@ -236,6 +240,19 @@ class Merger {
     std::vector<std::uint32_t> fill(offset_.begin(), offset_.end() - 1);
     for (TriangleId t = 0; t < m; ++t) {
       for (VertexId v : mesh_.triangles[t]) incident_[fill[v]++] = t;
+    }
+    live_end_ = std::move(fill);
+  }
+
+  // Removes a triangle whose death is final (committed, or outside a transaction) from the
+  // incidence lists of its three vertices, keeping the order of the others: a class that has
+  // absorbed many vertices then walks only its live triangles, in the same order as before.
+  void drop_dead(TriangleId t) {
+    for (VertexId v : mesh_.triangles[t]) {
+      std::uint32_t* first = incident_.data() + offset_[v];
+      std::uint32_t* last = incident_.data() + live_end_[v];
+      std::uint32_t* it = std::remove(first, last, t);
+      live_end_[v] = static_cast<std::uint32_t>(it - incident_.data());
     }
   }
 
@@ -271,7 +288,7 @@ class Merger {
     fan.overflow = false;
     VertexId m = r;
     do {
-      for (std::uint32_t i = offset_[m]; i < offset_[m + 1]; ++i) {
+      for (std::uint32_t i = offset_[m]; i < live_end_[m]; ++i) {
         const TriangleId t = incident_[i];
         if (alive_[t] == 0) continue;
         if (fan.size == kMaxFan) {
@@ -296,36 +313,80 @@ class Merger {
     return dot3(*n, *n) <= kSliverRatio * kSliverRatio * longest2 * longest2;
   }
 
-  // Distance test with a cheap exit: the distance to the triangle is at least the distance
-  // to its plane (most candidate triangles are rejected by that alone).
-  bool within_epsilon(const P3& p, const P3& a, const P3& b, const P3& c) const {
-    const P3 n = cross3(sub(b, a), sub(c, a));
-    const double n2 = dot3(n, n);
-    const double h = dot3(sub(p, a), n);
+  // A fan as it will be after a → b, its triangles' corners and plane normals computed once
+  // and only when first needed (a class of k members tests up to k × fan-size triangles; the
+  // geometry is the same for every member). The values are computed by the same expressions
+  // as a direct test, so the answers are bit for bit those of the direct test.
+  struct MovedFan {
+    const Fan* fan = nullptr;
+    VertexId a = kNoVertex;
+    VertexId b = kNoVertex;
+    std::array<std::uint8_t, kMaxFan> state;  // 0 = not yet computed, 1 = dies, 2 = ready
+    std::array<std::array<P3, 3>, kMaxFan> corners;
+    std::array<P3, kMaxFan> normal;  // (c1 − c0) × (c2 − c0), as within_epsilon computes it
+    std::array<double, kMaxFan> normal2;
+
+    MovedFan(const Fan& f, VertexId from, VertexId to) : fan(&f), a(from), b(to) {
+      std::fill_n(state.begin(), f.size, std::uint8_t{0});
+    }
+  };
+
+  bool moved_triangle_near(MovedFan& moved, int i, const P3& p) {
+    if (moved.state[i] == 0) {
+      auto c = current(moved.fan->triangles[i]);
+      bool has_a = false;
+      bool has_b = false;
+      for (VertexId& v : c) {
+        has_a = has_a || v == moved.a;
+        has_b = has_b || v == moved.b;
+        if (v == moved.a) v = moved.b;
+      }
+      if (has_a && has_b) {
+        moved.state[i] = 1;
+      } else {
+        moved.state[i] = 2;
+        auto& q = moved.corners[i];
+        for (int k = 0; k < 3; ++k) q[k] = position(c[k]);
+        moved.normal[i] = cross3(sub(q[1], q[0]), sub(q[2], q[0]));
+        moved.normal2[i] = dot3(moved.normal[i], moved.normal[i]);
+      }
+    }
+    if (moved.state[i] == 1) return false;
+    // Distance test with a cheap exit: the distance to the triangle is at least the distance
+    // to its plane (most candidate triangles are rejected by that alone).
+    const auto& q = moved.corners[i];
+    const double n2 = moved.normal2[i];
+    const double h = dot3(sub(p, q[0]), moved.normal[i]);
     if (h * h > epsilon2_ * n2 && n2 > 0.0) return false;
-    return detail::point_triangle_distance_squared(p, a, b, c) <= epsilon2_;
+    return detail::point_triangle_distance_squared(p, q[0], q[1], q[2]) <= epsilon2_;
   }
 
   // Would every member of class r (the MC vertices it absorbed) stay within epsilon of the
-  // fan `fan` of r after a → b? The fan's triangles are mapped a → b; those with both die.
-  bool class_within_epsilon(VertexId r, const Fan& fan, VertexId a, VertexId b) {
+  // fan of r after a → b (`moved`)? Each vertex remembers the triangle that last kept it within
+  // epsilon (witness_) and tries it first: a triangle away from a keeps its shape, so most
+  // re-checks end on the first test. Only the order of the tests changes, not their outcome.
+  bool class_within_epsilon(VertexId r, MovedFan& moved) {
+    const Fan& fan = *moved.fan;
+    // Where each fan triangle sits in the fan, for an O(1) witness lookup (stale entries of
+    // other fans are caught by the check below).
+    for (int i = 0; i < fan.size; ++i) fan_slot_[fan.triangles[i]] = static_cast<std::uint8_t>(i);
     VertexId m = r;
     do {
       // r itself is a corner of every triangle of its fan, unless r is a, which moves.
-      if (m != r || r == a) {
+      if (m != r || r == moved.a) {
         const P3 p = position(m);
-        bool near = false;
+        int first = -1;
+        if (witness_[m] != kNoTriangle) {
+          const int slot = fan_slot_[witness_[m]];
+          if (slot < fan.size && fan.triangles[slot] == witness_[m]) first = slot;
+        }
+        bool near = first >= 0 && moved_triangle_near(moved, first, p);
         for (int i = 0; i < fan.size && !near; ++i) {
-          auto c = current(fan.triangles[i]);
-          bool has_a = false;
-          bool has_b = false;
-          for (VertexId& v : c) {
-            has_a = has_a || v == a;
-            has_b = has_b || v == b;
-            if (v == a) v = b;
+          if (i == first) continue;
+          if (moved_triangle_near(moved, i, p)) {
+            near = true;
+            witness_[m] = fan.triangles[i];
           }
-          if (has_a && has_b) continue;
-          near = within_epsilon(p, position(c[0]), position(c[1]), position(c[2]));
         }
         if (!near) return false;
       }
@@ -343,6 +404,10 @@ class Merger {
     Fan fan_a;
     gather_fan(a, fan_a);
     if (fan_a.overflow) return reject(stats_.rejected_fan_size);
+    // Current corners of a's fan, found once: every test below reads them (the mesh does not
+    // change until the collapse is applied).
+    std::array<std::array<VertexId, 3>, kMaxFan> corners_a;
+    for (int i = 0; i < fan_a.size; ++i) corners_a[i] = current(fan_a.triangles[i]);
 
     // Link of a, boundary test and the edge (a, b). In a closed fan every neighbour follows a
     // once and precedes it once; a neighbour seen only one way marks a boundary edge.
@@ -351,7 +416,7 @@ class Merger {
     std::array<int, 2 * kMaxFan> balance;
     int edge_ab = 0;
     for (int i = 0; i < fan_a.size; ++i) {
-      const auto c = current(fan_a.triangles[i]);
+      const auto& c = corners_a[i];
       const int k = c[0] == a ? 0 : c[1] == a ? 1 : 2;
       const VertexId next = c[(k + 1) % 3];
       const VertexId prev = c[(k + 2) % 3];
@@ -378,9 +443,11 @@ class Merger {
     Fan fan_b;
     gather_fan(b, fan_b);
     if (fan_b.overflow) return reject(stats_.rejected_fan_size);
+    std::array<std::array<VertexId, 3>, kMaxFan> corners_b;
     SmallSet<2 * kMaxFan> link_b;
     for (int i = 0; i < fan_b.size; ++i) {
-      for (VertexId v : current(fan_b.triangles[i])) {
+      corners_b[i] = current(fan_b.triangles[i]);
+      for (VertexId v : corners_b[i]) {
         if (v != b) link_b.insert(v);
       }
     }
@@ -400,7 +467,7 @@ class Merger {
     // Fold-over: every triangle of a that survives keeps its orientation within the limits.
     const P3 pb = position(b);
     for (int i = 0; i < fan_a.size; ++i) {
-      const auto c = current(fan_a.triangles[i]);
+      const auto& c = corners_a[i];
       if (c[0] == b || c[1] == b || c[2] == b) continue;
       P3 q[3];
       P3 ref{0, 0, 0};
@@ -432,12 +499,13 @@ class Merger {
     Fan fan_ab;
     for (int i = 0; i < fan_a.size; ++i) fan_ab.triangles[fan_ab.size++] = fan_a.triangles[i];
     for (int i = 0; i < fan_b.size; ++i) {
-      const auto c = current(fan_b.triangles[i]);
+      const auto& c = corners_b[i];
       if (c[0] == a || c[1] == a || c[2] == a) continue;
       if (fan_ab.size == kMaxFan) return reject(stats_.rejected_fan_size);
       fan_ab.triangles[fan_ab.size++] = fan_b.triangles[i];
     }
-    if (!class_within_epsilon(a, fan_ab, a, b) || !class_within_epsilon(b, fan_ab, a, b)) {
+    MovedFan moved_ab(fan_ab, a, b);
+    if (!class_within_epsilon(a, moved_ab) || !class_within_epsilon(b, moved_ab)) {
       return reject(stats_.rejected_distance);
     }
     for (int j = 0; j < link_a.size; ++j) {
@@ -446,7 +514,8 @@ class Merger {
       Fan fan_x;
       gather_fan(x, fan_x);
       if (fan_x.overflow) return reject(stats_.rejected_fan_size);
-      if (!class_within_epsilon(x, fan_x, a, b)) return reject(stats_.rejected_distance);
+      MovedFan moved_x(fan_x, a, b);
+      if (!class_within_epsilon(x, moved_x)) return reject(stats_.rejected_distance);
     }
 
     // Apply: a joins b's class; the two triangles on the edge (a, b) die.
@@ -454,14 +523,20 @@ class Merger {
     parent_[a] = b;
     std::swap(next_member_[a], next_member_[b]);
     for (int i = 0; i < fan_a.size; ++i) {
-      const auto c = current(fan_a.triangles[i]);
+      // The corners as they are now that a is b.
+      std::array<VertexId, 3> c = corners_a[i];
+      for (VertexId& v : c) v = v == a ? b : v;
       if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) {
         alive_[fan_a.triangles[i]] = 0;
         if (entry.killed_count < 2) entry.killed[entry.killed_count++] = fan_a.triangles[i];
       }
     }
     assert(entry.killed_count == 2);
-    if (in_transaction_) journal_.push_back(entry);
+    if (in_transaction_) {
+      journal_.push_back(entry);
+    } else {
+      for (int k = 0; k < entry.killed_count; ++k) drop_dead(entry.killed[k]);
+    }
     ++stats_.collapses_done;
     return true;
   }
@@ -486,7 +561,22 @@ class Merger {
     slivers_at_begin_ = stats_.sliver_collapses;
   }
 
-  void commit() { in_transaction_ = false; }
+  // Every merge runs in a transaction, where find() may not compress paths; so the classes
+  // the merge touched are flattened here (each member points at its root), which keeps every
+  // later find() at one or two steps on surfaces where classes chain over many merges.
+  void commit() {
+    in_transaction_ = false;
+    for (const JournalEntry& entry : journal_) {
+      for (int k = 0; k < entry.killed_count; ++k) drop_dead(entry.killed[k]);
+      const VertexId root = find(entry.b);
+      if (parent_[entry.a] == root) continue;  // flattened already
+      VertexId m = root;
+      do {
+        parent_[m] = root;
+        m = next_member_[m];
+      } while (m != root);
+    }
+  }
 
   void rollback() {
     for (auto it = journal_.rbegin(); it != journal_.rend(); ++it) {
@@ -730,7 +820,10 @@ class Merger {
   std::vector<VertexId> next_member_;  // ring through each class
   std::vector<std::uint32_t> offset_;  // CSR vertex → incident triangles
   std::vector<TriangleId> incident_;
+  std::vector<std::uint32_t> live_end_;  // end of the still-live prefix of each CSR list
   std::vector<std::uint8_t> alive_;
+  std::vector<TriangleId> witness_;    // hint: the triangle that last kept a vertex near
+  std::vector<std::uint8_t> fan_slot_;  // scratch: position of a triangle in the fan checked
   bool in_transaction_ = false;
   std::size_t slivers_at_begin_ = 0;
   std::vector<JournalEntry> journal_;  // collapses of the open transaction (reused buffer)

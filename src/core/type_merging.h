@@ -23,8 +23,8 @@
 //
 // Memory (whole-volume approach of §4.5, "polygonize, merge, compact"): peak ≈ the MC mesh
 // (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube (lattice records from
-// the extractor) + 12 bytes per vertex (union-find parent, class ring, CSR offset) + 13 bytes
-// per triangle (CSR incidence, alive flag) + 2 bytes per boundary cube (FLAG, run length) +
+// the extractor) + 20 bytes per vertex (union-find parent, class ring, CSR offset and live
+// end, distance witness) + 14 bytes per triangle (CSR incidence, alive flag, fan slot) + 2 bytes per boundary cube (FLAG, run length) +
 // 4 bytes per cube row (y, z) + the compacted output. No per-vertex heap allocation, no hash
 // map: everything is a flat array indexed by vertex, triangle or cube record.
 //

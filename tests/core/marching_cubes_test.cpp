@@ -562,6 +562,64 @@ TEST(MarchingCubes, ResultIsDeterministic) {
   EXPECT_EQ(first.triangles, second.triangles);
 }
 
+// Threads: slabs of layers extracted independently and concatenated must give exactly the
+// serial result — vertex order, triangles, normals, cube records and statistics — for any
+// thread count (slab boundaries move with it), open or closed, consistent or classic.
+void expect_same_for_any_thread_count(const Volume& volume, float iso, ExtractOptions options) {
+  std::vector<BoundaryCube> serial_cubes;
+  AmbiguityStats serial_stats;
+  options.threads = 1;
+  options.cubes = &serial_cubes;
+  options.stats = &serial_stats;
+  const TriangleMesh serial = extract_isosurface(volume, iso, options);
+  ASSERT_FALSE(serial.empty());
+  for (unsigned threads : {2u, 3u, 4u, 0u}) {
+    SCOPED_TRACE(threads);
+    std::vector<BoundaryCube> cubes;
+    AmbiguityStats stats;
+    options.threads = threads;
+    options.cubes = &cubes;
+    options.stats = &stats;
+    const TriangleMesh mesh = extract_isosurface(volume, iso, options);
+    EXPECT_EQ(mesh.positions, serial.positions);
+    EXPECT_EQ(mesh.normals, serial.normals);
+    EXPECT_EQ(mesh.triangles, serial.triangles);
+    ASSERT_EQ(cubes.size(), serial_cubes.size());
+    for (std::size_t k = 0; k < cubes.size(); ++k) {
+      EXPECT_EQ(cubes[k].x, serial_cubes[k].x);
+      EXPECT_EQ(cubes[k].y, serial_cubes[k].y);
+      EXPECT_EQ(cubes[k].z, serial_cubes[k].z);
+      EXPECT_EQ(cubes[k].index, serial_cubes[k].index);
+      EXPECT_EQ(cubes[k].first_triangle, serial_cubes[k].first_triangle);
+    }
+    EXPECT_EQ(stats.boundary_cubes, serial_stats.boundary_cubes);
+    EXPECT_EQ(stats.cubes_with_ambiguous_faces, serial_stats.cubes_with_ambiguous_faces);
+    EXPECT_EQ(stats.joined_faces, serial_stats.joined_faces);
+    EXPECT_EQ(stats.centroid_vertices, serial_stats.centroid_vertices);
+  }
+}
+
+TEST(MarchingCubes, ThreadsGiveTheSerialResultOnNoise) {
+  const Volume volume = noise_volume(13, 11, 70, 5);  // 71 layers: up to 8 slabs
+  expect_same_for_any_thread_count(volume, 0.5f, kClosed);
+  expect_same_for_any_thread_count(volume, 0.5f, kOpen);
+  expect_same_for_any_thread_count(volume, 0.5f, kClassic);
+}
+
+TEST(MarchingCubes, ThreadsGiveTheSerialResultOnASphere) {
+  const Volume volume = sphere_volume(48, 19.3, 23.6, 23.2, 23.9);
+  expect_same_for_any_thread_count(volume, 0.0f, kClosed);
+  expect_same_for_any_thread_count(volume, 0.0f, kOpen);
+}
+
+TEST(MarchingCubes, ThreadsOnThinVolumes) {
+  // Fewer layers than a slab, and a surface only in the last layers.
+  expect_same_for_any_thread_count(noise_volume(9, 9, 3, 2), 0.5f, kClosed);
+  const Volume top = sample_volume(8, 8, 40, [](double, double, double z) { return z - 35.5; });
+  expect_same_for_any_thread_count(top, 0.0f, kOpen);
+  expect_same_for_any_thread_count(top, 0.0f, kClosed);
+}
+
 TEST(MarchingCubes, MirroringPatientMapKeepsTheSphereOutward) {
   const Volume volume = sphere_volume(20, 6.2, 9.5, 9.3, 9.6);
   TriangleMesh mesh = extract_isosurface(volume, 0.0f, kClosed);

@@ -1,0 +1,234 @@
+// Vertex-to-surface distances over a uniform grid of triangle buckets (see mesh_distance.h).
+#include "core/mesh_distance.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/parallel.h"
+#include "core/type_merging.h"  // detail::point_triangle_distance_squared
+
+namespace typemerge::core {
+
+namespace {
+
+using P3 = std::array<double, 3>;
+
+P3 to_p3(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
+
+// Triangles of a mesh bucketed by the grid cells their bounding boxes overlap (CSR).
+class TriangleGrid {
+ public:
+  explicit TriangleGrid(const TriangleMesh& mesh) : mesh_(mesh) {
+    lo_ = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+           std::numeric_limits<double>::max()};
+    P3 hi = {-lo_[0], -lo_[1], -lo_[2]};
+    for (const auto& t : mesh.triangles) {
+      for (auto v : t) {
+        for (int a = 0; a < 3; ++a) {
+          lo_[a] = std::min(lo_[a], double{mesh.positions[v][a]});
+          hi[a] = std::max(hi[a], double{mesh.positions[v][a]});
+        }
+      }
+    }
+    // Cell edge: about two triangles per cell for a surface (cells ~ area / edge²).
+    double mean_edge = 0.0;
+    for (const auto& t : mesh.triangles) {
+      const P3 p0 = to_p3(mesh.positions[t[0]]);
+      const P3 p1 = to_p3(mesh.positions[t[1]]);
+      mean_edge += std::sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
+                             (p1[2] - p0[2]) * (p1[2] - p0[2]));
+    }
+    mean_edge /= static_cast<double>(mesh.triangles.size());
+    cell_ = std::max(2.0 * mean_edge, 1e-9);
+    for (int a = 0; a < 3; ++a) {
+      // Cap the cell count per axis so a stray far triangle cannot blow up the grid.
+      const double extent = hi[a] - lo_[a];
+      cell_ = std::max(cell_, extent / 1024.0);
+    }
+    for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo_[a]) / cell_) + 1;
+    const std::size_t cells = static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2];
+
+    // Count, prefix sum, fill.
+    start_.assign(cells + 1, 0);
+    for_each_cell_of_triangles([&](std::size_t cell, std::uint32_t) { ++start_[cell + 1]; });
+    for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
+    entries_.resize(start_[cells]);
+    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for_each_cell_of_triangles(
+        [&](std::size_t cell, std::uint32_t t) { entries_[fill[cell]++] = t; });
+  }
+
+  // Squared distance from p to the nearest triangle; `stamp` (one entry per triangle, owned by
+  // the calling thread) avoids testing a triangle twice per query.
+  double nearest_squared(const P3& p, std::vector<std::uint32_t>& stamp,
+                         std::uint32_t query) const {
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) {
+      c[a] = std::clamp(static_cast<int>(std::floor((p[a] - lo_[a]) / cell_)), 0, dims_[a] - 1);
+    }
+    double best = std::numeric_limits<double>::infinity();
+    const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
+    for (int r = 0; r <= max_ring; ++r) {
+      for (int z = c[2] - r; z <= c[2] + r; ++z) {
+        if (z < 0 || z >= dims_[2]) continue;
+        for (int y = c[1] - r; y <= c[1] + r; ++y) {
+          if (y < 0 || y >= dims_[1]) continue;
+          const bool inner = std::abs(z - c[2]) < r && std::abs(y - c[1]) < r;
+          for (int x = c[0] - r; x <= c[0] + r; x += (inner ? 2 * r : 1)) {
+            if (x >= 0 && x < dims_[0]) visit(x, y, z, p, stamp, query, best);
+            if (r == 0) break;
+          }
+        }
+      }
+      // Every cell outside the block [c − r, c + r] is at least `gap` away from p.
+      double gap = std::numeric_limits<double>::infinity();
+      for (int a = 0; a < 3; ++a) {
+        gap = std::min(gap, p[a] - (lo_[a] + (c[a] - r) * cell_));
+        gap = std::min(gap, lo_[a] + (c[a] + r + 1) * cell_ - p[a]);
+      }
+      if (gap > 0.0 && gap * gap >= best) break;
+    }
+    return best;
+  }
+
+ private:
+  template <typename F>
+  void for_each_cell_of_triangles(const F& f) const {
+    for (std::uint32_t t = 0; t < mesh_.triangles.size(); ++t) {
+      std::array<int, 3> c0{};
+      std::array<int, 3> c1{};
+      for (int a = 0; a < 3; ++a) {
+        double mn = std::numeric_limits<double>::max();
+        double mx = -mn;
+        for (auto v : mesh_.triangles[t]) {
+          mn = std::min(mn, double{mesh_.positions[v][a]});
+          mx = std::max(mx, double{mesh_.positions[v][a]});
+        }
+        c0[a] = std::clamp(static_cast<int>((mn - lo_[a]) / cell_), 0, dims_[a] - 1);
+        c1[a] = std::clamp(static_cast<int>((mx - lo_[a]) / cell_), 0, dims_[a] - 1);
+      }
+      for (int z = c0[2]; z <= c1[2]; ++z) {
+        for (int y = c0[1]; y <= c1[1]; ++y) {
+          for (int x = c0[0]; x <= c1[0]; ++x) f(cell_index(x, y, z), t);
+        }
+      }
+    }
+  }
+
+  std::size_t cell_index(int x, int y, int z) const {
+    return static_cast<std::size_t>(x) +
+           static_cast<std::size_t>(dims_[0]) *
+               (static_cast<std::size_t>(y) + static_cast<std::size_t>(dims_[1]) * z);
+  }
+
+  // Squared distance from p to the box [lo, hi] (0 inside).
+  static double box_distance_squared(const P3& p, const P3& lo, const P3& hi) {
+    double d2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double d = std::max({lo[a] - p[a], 0.0, p[a] - hi[a]});
+      d2 += d * d;
+    }
+    return d2;
+  }
+
+  void visit(int x, int y, int z, const P3& p, std::vector<std::uint32_t>& stamp,
+             std::uint32_t query, double& best) const {
+    const P3 cell_lo = {lo_[0] + x * cell_, lo_[1] + y * cell_, lo_[2] + z * cell_};
+    const P3 cell_hi = {cell_lo[0] + cell_, cell_lo[1] + cell_, cell_lo[2] + cell_};
+    // A triangle's nearest point to p lies in some cell the triangle is bucketed in; that cell
+    // is nearer than `best` whenever the triangle matters, so farther cells can be skipped
+    // (without stamping their triangles).
+    if (box_distance_squared(p, cell_lo, cell_hi) >= best) return;
+    const std::size_t cell = cell_index(x, y, z);
+    for (std::uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
+      const std::uint32_t t = entries_[i];
+      if (stamp[t] == query) continue;
+      stamp[t] = query;
+      const auto& tri = mesh_.triangles[t];
+      const P3 a = to_p3(mesh_.positions[tri[0]]);
+      const P3 b = to_p3(mesh_.positions[tri[1]]);
+      const P3 c = to_p3(mesh_.positions[tri[2]]);
+      const P3 box_lo = {std::min({a[0], b[0], c[0]}), std::min({a[1], b[1], c[1]}),
+                         std::min({a[2], b[2], c[2]})};
+      const P3 box_hi = {std::max({a[0], b[0], c[0]}), std::max({a[1], b[1], c[1]}),
+                         std::max({a[2], b[2], c[2]})};
+      if (box_distance_squared(p, box_lo, box_hi) >= best) continue;
+      best = std::min(best, detail::point_triangle_distance_squared(p, a, b, c));
+    }
+  }
+
+  const TriangleMesh& mesh_;
+  P3 lo_{};
+  double cell_ = 1.0;
+  std::array<int, 3> dims_{};
+  std::vector<std::uint32_t> start_;
+  std::vector<std::uint32_t> entries_;
+};
+
+}  // namespace
+
+MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
+                                     unsigned threads) {
+  MeshDistance out;
+  out.points = from.positions.size();
+  if (from.positions.empty()) return out;
+  if (to.triangles.empty()) {
+    out.max = out.mean = std::numeric_limits<double>::infinity();
+    return out;
+  }
+  const TriangleGrid grid(to);
+  // Fixed chunks summed in chunk order: the mean is the same for any thread count.
+  constexpr std::size_t kChunk = 4096;
+  const std::size_t chunks = (from.positions.size() + kChunk - 1) / kChunk;
+  std::vector<double> chunk_max(chunks, 0.0);
+  std::vector<double> chunk_sum(chunks, 0.0);
+  const unsigned n_threads = detail::resolve_threads(threads);
+  // Per worker: the query stamp of every triangle of `to`, and the current query number.
+  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
+  std::vector<std::uint32_t> queries(n_threads, 0);
+  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
+    std::vector<std::uint32_t>& stamp = stamps[w];
+    std::uint32_t& query = queries[w];
+    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
+    const std::size_t end = std::min(from.positions.size(), (k + 1) * kChunk);
+    for (std::size_t v = k * kChunk; v < end; ++v) {
+      if (++query == 0) {  // wrapped: reset the stamps
+        std::fill(stamp.begin(), stamp.end(), 0);
+        query = 1;
+      }
+      const double d = std::sqrt(grid.nearest_squared(to_p3(from.positions[v]), stamp, query));
+      chunk_max[k] = std::max(chunk_max[k], d);
+      chunk_sum[k] += d;
+    }
+  });
+  double sum = 0.0;
+  for (std::size_t k = 0; k < chunks; ++k) {
+    out.max = std::max(out.max, chunk_max[k]);
+    sum += chunk_sum[k];
+  }
+  out.mean = sum / static_cast<double>(from.positions.size());
+  return out;
+}
+
+double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads) {
+  return vertex_to_mesh_distance(from, to, threads).max;
+}
+
+double SymmetricMeshDistance::mean() const {
+  const double n = static_cast<double>(a_to_b.points + b_to_a.points);
+  if (n == 0.0) return 0.0;
+  return (a_to_b.mean * static_cast<double>(a_to_b.points) +
+          b_to_a.mean * static_cast<double>(b_to_a.points)) /
+         n;
+}
+
+SymmetricMeshDistance mesh_distance(const TriangleMesh& a, const TriangleMesh& b,
+                                    unsigned threads) {
+  return {vertex_to_mesh_distance(a, b, threads), vertex_to_mesh_distance(b, a, threads)};
+}
+
+}  // namespace typemerge::core

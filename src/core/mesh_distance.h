@@ -1,0 +1,48 @@
+// Distances between two triangle meshes, for reporting how far a simplified surface (type
+// merging, decimation) departs from the marching-cubes surface it came from.
+//
+// The one-sided distance samples the vertices of `from` and measures each one's exact
+// Euclidean distance to the surface (the triangles) of `to`; the symmetric figures run it both
+// ways. Vertex sampling is what the type-merging ε bound (MergeOptions::epsilon_voxels) is
+// stated for: every MC vertex lies within ε of the merged mesh, i.e.
+// vertex_to_mesh_distance(mc, merged).max <= ε.
+//
+// Cost: a uniform grid of triangle buckets over `to` (about two triangles per cell, CSR, 4
+// bytes per bucket entry + 4 per cell), then per point a search in growing shells of cells that
+// stops once no unvisited cell can be nearer; about 1 s per million points on one thread for
+// CT surfaces, split over `threads`. Results do not depend on the thread count.
+#pragma once
+
+#include <cstddef>
+
+#include "core/mesh.h"
+
+namespace typemerge::core {
+
+struct MeshDistance {
+  double max = 0.0;   // largest vertex-to-surface distance, in the meshes' units
+  double mean = 0.0;  // mean over the vertices
+  std::size_t points = 0;
+};
+
+// Distances from every vertex of `from` to the surface of `to`. An empty `from` gives zeros;
+// an empty `to` (with a non-empty `from`) gives infinity. threads: 0 = hardware concurrency.
+MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
+                                     unsigned threads = 0);
+
+// vertex_to_mesh_distance(from, to).max.
+double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads = 0);
+
+struct SymmetricMeshDistance {
+  MeshDistance a_to_b;
+  MeshDistance b_to_a;
+  double hausdorff() const { return a_to_b.max > b_to_a.max ? a_to_b.max : b_to_a.max; }
+  // Mean over the vertices of both meshes.
+  double mean() const;
+};
+
+// Both directions (vertex-sampled symmetric Hausdorff distance and mean distance).
+SymmetricMeshDistance mesh_distance(const TriangleMesh& a, const TriangleMesh& b,
+                                    unsigned threads = 0);
+
+}  // namespace typemerge::core

@@ -1,0 +1,110 @@
+// Tests of vertex_to_mesh_distance / mesh_distance: exact values on drawn meshes, agreement
+// with brute force (every point against every triangle) on MC and merged surfaces, and the
+// same answer for any thread count.
+#include "core/mesh_distance.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "core/marching_cubes.h"
+#include "core/type_merging.h"
+#include "test_volumes.h"
+
+namespace typemerge::core {
+namespace {
+
+MeshDistance brute_force(const TriangleMesh& from, const TriangleMesh& to) {
+  MeshDistance out;
+  out.points = from.positions.size();
+  auto p3 = [](const std::array<float, 3>& p) { return std::array<double, 3>{p[0], p[1], p[2]}; };
+  double sum = 0.0;
+  for (const auto& p : from.positions) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& t : to.triangles) {
+      best = std::min(best, detail::point_triangle_distance_squared(
+                                p3(p), p3(to.positions[t[0]]), p3(to.positions[t[1]]),
+                                p3(to.positions[t[2]])));
+    }
+    out.max = std::max(out.max, std::sqrt(best));
+    sum += std::sqrt(best);
+  }
+  out.mean = sum / static_cast<double>(from.positions.size());
+  return out;
+}
+
+//  A unit square in z = 0 (two triangles) and a point set above it:
+//    (0.5, 0.5, 2) → 2 (over the face), (3, 0, 0) → 2 (off the edge x = 1), (2, 2, 0) → √2.
+TEST(MeshDistance, ExactOnASquare) {
+  TriangleMesh square;
+  square.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  square.triangles = {{0, 1, 2}, {0, 2, 3}};
+  TriangleMesh points;
+  points.positions = {{0.5f, 0.5f, 2.0f}, {3, 0, 0}, {2, 2, 0}};
+  const MeshDistance d = vertex_to_mesh_distance(points, square, 1);
+  EXPECT_DOUBLE_EQ(d.max, 2.0);
+  EXPECT_NEAR(d.mean, (2.0 + 2.0 + std::sqrt(2.0)) / 3.0, 1e-12);
+  EXPECT_EQ(d.points, 3u);
+  EXPECT_DOUBLE_EQ(max_vertex_distance(square, square), 0.0);
+}
+
+TEST(MeshDistance, EmptyMeshes) {
+  TriangleMesh empty;
+  TriangleMesh square;
+  square.positions = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}};
+  square.triangles = {{0, 1, 2}};
+  EXPECT_EQ(vertex_to_mesh_distance(empty, square).max, 0.0);
+  EXPECT_TRUE(std::isinf(vertex_to_mesh_distance(square, empty).max));
+}
+
+TEST(MeshDistance, MatchesBruteForceOnMergedSurfaces) {
+  const Volume volume = test::sphere_volume(26, 9.7, 12.3, 12.6, 12.1);
+  const TriangleMesh mc = extract_isosurface(volume, 0.0f);
+  const TriangleMesh tm = extract_type_merged(volume, 0.0f);
+  // Far points too: a shifted copy is outside the grid of the other mesh.
+  TriangleMesh shifted = tm;
+  for (auto& p : shifted.positions) p[0] += 17.0f;
+  using Pair = std::pair<const TriangleMesh*, const TriangleMesh*>;
+  for (const auto& [from, to] : {Pair{&mc, &tm}, Pair{&tm, &mc}, Pair{&shifted, &mc},
+                                 Pair{&mc, &shifted}}) {
+    const MeshDistance fast = vertex_to_mesh_distance(*from, *to, 1);
+    const MeshDistance slow = brute_force(*from, *to);
+    EXPECT_DOUBLE_EQ(fast.max, slow.max);
+    EXPECT_NEAR(fast.mean, slow.mean, 1e-12 * std::max(1.0, slow.mean));
+  }
+  EXPECT_LE(max_vertex_distance(mc, tm), MergeOptions{}.epsilon_voxels);
+  const SymmetricMeshDistance both = mesh_distance(mc, tm, 1);
+  EXPECT_DOUBLE_EQ(both.hausdorff(), std::max(brute_force(mc, tm).max, brute_force(tm, mc).max));
+}
+
+TEST(MeshDistance, SameForAnyThreadCount) {
+  const Volume volume = test::noise_volume(24, 20, 22, 3);
+  const TriangleMesh mc = extract_isosurface(volume, 0.5f);
+  const TriangleMesh tm = extract_type_merged(volume, 0.5f);
+  const MeshDistance one = vertex_to_mesh_distance(mc, tm, 1);
+  for (unsigned threads : {2u, 3u, 0u}) {
+    const MeshDistance d = vertex_to_mesh_distance(mc, tm, threads);
+    EXPECT_EQ(d.max, one.max);
+    EXPECT_EQ(d.mean, one.mean);
+  }
+}
+
+TEST(TypeMerging, ThreadedExtractionMergesToTheSameMesh) {
+  const Volume volume = test::noise_volume(16, 14, 60, 9);
+  ExtractOptions options;
+  const TriangleMesh serial = extract_type_merged(volume, 0.5f, options);
+  for (unsigned threads : {2u, 3u}) {
+    options.threads = threads;
+    const TriangleMesh mesh = extract_type_merged(volume, 0.5f, options);
+    EXPECT_EQ(mesh.positions, serial.positions);
+    EXPECT_EQ(mesh.normals, serial.normals);
+    EXPECT_EQ(mesh.triangles, serial.triangles);
+  }
+}
+
+}  // namespace
+}  // namespace typemerge::core
