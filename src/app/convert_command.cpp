@@ -18,6 +18,7 @@
 #include "io/atomic_file.h"
 #include "io/preview_png.h"
 #include "io/mesh_writers.h"
+#include "preprocess/body_mask.h"
 #include "preprocess/crop.h"
 #include "preprocess/denoise.h"
 #include "preprocess/resample.h"
@@ -186,6 +187,12 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
       ->check(CLI::PositiveNumber);
   command->add_flag("--crop-tissue", options.crop_to_tissue,
                     "Crop to the bounding box of the body (> -400 HU) first");
+  auto* remove_table = command->add_flag(
+      "--remove-table", options.remove_table,
+      "Clear everything outside the body (scanner table, rails, mattress) to air first; "
+      "default with presets");
+  command->add_flag("--keep-table", options.keep_table, "Do not remove the table")
+      ->excludes(remove_table);
   command->add_flag("--preview", options.preview, "Also write a shaded PNG beside each STL");
   command->add_flag("--ascii", options.ascii_stl, "ASCII STL instead of binary");
   command->add_option("--space", options.space,
@@ -234,10 +241,19 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                      {"warnings", loaded.warnings},
                      {"load_ms", load_ms}};
 
-  // Preprocessing, in a fixed order: crop (less to filter), denoise, resample.
+  // Preprocessing, in a fixed order: table removal (on the data as acquired), crop (less to
+  // filter), denoise, resample.
   core::Volume volume = std::move(loaded.volume);
   ordered_json steps = ordered_json::array();
+  const bool any_preset = !options.presets.empty();
   try {
+    if (options.remove_table || (any_preset && !options.keep_table)) {
+      const auto start = Clock::now();
+      auto step = preprocess::remove_outside_body(std::move(volume));
+      volume = std::move(step.volume);
+      for (const auto& w : step.record.warnings) log << "warning: " << w << "\n";
+      steps.push_back(record_json(step.record, ms_since(start)));
+    }
     if (options.crop_to_tissue) {
       const auto start = Clock::now();
       auto step = preprocess::crop_to_tissue(volume, {});

@@ -31,6 +31,8 @@ struct ConvertOptions {
   std::string denoise = "none";  // none | gaussian | median | bilateral
   double voxel_size_mm = 0;      // > 0: resample to isotropic voxels of this size
   bool crop_to_tissue = false;
+  bool remove_table = false;  // default on with presets
+  bool keep_table = false;
   bool ascii_stl = false;
   std::string space = "lps";  // lps | ras
   bool center = false;

@@ -1,0 +1,72 @@
+#include "preprocess/body_mask.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace typemerge::preprocess {
+namespace {
+
+// A body (soft-tissue cylinder along z, with a bone rod inside) lying on a thin table top that
+// touches it along a line, plus two metal rails under the table: in every slice
+//
+//        .-""-.        body: radius 20 mm, 40 HU, rod 1000 HU
+//       (  ()  )
+//        '-..-'
+//   ==============     table top: 3 mm thick, 300 HU, touching the body
+//     ||      ||       rails: 1500 HU
+core::Volume body_on_table() {
+  core::IndexToPatient geometry;
+  geometry.axes = {{{1, 0, 0}, {0, 1, 0}, {0, 0, 2}}};
+  core::Volume volume({80, 70, 12}, geometry);
+  for (std::int64_t k = 0; k < 12; ++k) {
+    for (std::int64_t j = 0; j < 70; ++j) {
+      for (std::int64_t i = 0; i < 80; ++i) {
+        const double x = double(i) - 40, y = double(j) - 30;
+        float hu = -1000;
+        if (x * x + y * y <= 400) hu = 40;
+        if (x * x + y * y <= 16) hu = 1000;
+        if (y >= 20 && y < 23 && std::abs(x) < 38) hu = 300;
+        if (y >= 26 && y < 30 && (std::abs(x - 20) < 2 || std::abs(x + 20) < 2)) hu = 1500;
+        volume.at(i, j, k) = hu;
+      }
+    }
+  }
+  return volume;
+}
+
+TEST(BodyMask, ClearsTableAndRailsKeepsTheBody) {
+  const core::Volume input = body_on_table();
+  StepResult result = remove_outside_body(input);
+  const core::Volume& out = result.volume;
+  EXPECT_EQ(out.at(40, 30, 5), 1000.0f);      // the rod inside the body
+  EXPECT_EQ(out.at(40 + 19, 30, 5), 40.0f);   // the body's edge
+  EXPECT_EQ(input.at(5, 51, 5), 300.0f);      // the table top far from the body (y = 21 mm)
+  EXPECT_EQ(out.at(5, 51, 5), -1000.0f);
+  EXPECT_EQ(input.at(60, 57, 5), 1500.0f);    // a rail (x = 20, y = 27 mm)
+  EXPECT_EQ(out.at(60, 57, 5), -1000.0f);
+  // Every body voxel is kept.
+  for (std::int64_t j = 0; j < 70; ++j) {
+    for (std::int64_t i = 0; i < 80; ++i) {
+      const double x = double(i) - 40, y = double(j) - 30;
+      if (x * x + y * y <= 400) {
+        ASSERT_EQ(out.at(i, j, 3), input.at(i, j, 3)) << i << "," << j;
+      }
+    }
+  }
+  ASSERT_NE(result.record.parameter("cleared_voxels"), nullptr);
+  EXPECT_GT(std::stoi(*result.record.parameter("cleared_voxels")), 12 * 2 * 4 * 4);
+}
+
+TEST(BodyMask, EmptyVolumeIsReturnedWithAWarning) {
+  core::Volume air({10, 10, 4}, {});
+  for (float& v : air.samples()) v = -1000;
+  const StepResult result = remove_outside_body(air);
+  EXPECT_FALSE(result.record.warnings.empty());
+  EXPECT_EQ(result.volume.samples(), air.samples());
+  EXPECT_THROW(remove_outside_body(air, {.air_threshold_hu = -500, .opening_mm = 0}),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace typemerge::preprocess
