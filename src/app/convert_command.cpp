@@ -3,6 +3,8 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -205,6 +207,11 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
 
 int run_convert(const ConvertOptions& options, std::ostream& log) {
   const auto run_start = Clock::now();
+  // Progress for people at a terminal; scripts and logs (stderr not a TTY) get only results.
+  const bool interactive = ::isatty(STDERR_FILENO) == 1;
+  auto progress = [&](const std::string& what) {
+    if (interactive) log << "... " << what << "\n" << std::flush;
+  };
   const std::vector<SurfaceSpec> specs = surface_specs(options);
   if (specs.size() > 1) {
     std::error_code error;
@@ -224,6 +231,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
 
   ordered_json report = {{"tool", "typemerge"}, {"version", kVersion}};
   const auto load_start = Clock::now();
+  progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id);
   const dicom::SeriesInfo& series = *input.series;
   dicom::LoadedSeries& loaded = input.loaded;
@@ -299,6 +307,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   ordered_json surfaces = ordered_json::array();
   for (const SurfaceSpec& spec : specs) {
     check_tissue(volume, loaded.min_hu, loaded.max_hu, spec);
+    progress("extracting and finishing " + spec.label);
     SurfaceResult result = make_surface(volume, spec, pipeline);
     if (result.mesh.empty()) {
       throw CommandError{kExitInputRefused,
