@@ -4,6 +4,7 @@
 #include <dcmtk/dcmdata/dcfilefo.h>
 #include <dcmtk/dcmdata/dcitem.h>
 #include <dcmtk/dcmdata/dcmetinf.h>
+#include <dcmtk/dcmdata/dcstack.h>
 #include <dcmtk/dcmdata/dcuid.h>
 #include <dcmtk/dcmdata/dcxfer.h>
 
@@ -12,6 +13,7 @@
 #include <algorithm>
 #include <mutex>
 #include <cctype>
+#include <cstdio>
 #include <optional>
 
 #include "dicom/decimal_string.h"
@@ -147,6 +149,29 @@ void read_functional_group(DcmItem& group, SliceHeader& header) {
   }
 }
 
+// DCMTK reads values longer than kLazyValueBytes on first access and allocates their declared
+// length before reading: a 1 kB file declaring a 2 GB name allocates 2 GB (found by
+// fuzz/fuzz_dicom_file). No value is longer than the file holds, or for a deflated data set
+// than 1032 times it (zlib's largest ratio), so a longer one refuses the file before any
+// value is read.
+void check_value_lengths(DcmFileFormat& format, std::uint64_t file_bytes, bool deflated) {
+  if (file_bytes == 0) return;  // size unknown: nothing to compare with
+  const std::uint64_t limit = deflated ? file_bytes * 1032 + 1024 : file_bytes;
+  DcmStack stack;
+  while (format.nextObject(stack, OFTrue).good()) {
+    DcmObject* object = stack.top();
+    if (object == nullptr || !object->isLeaf()) continue;
+    const Uint32 length = object->getLengthField();
+    if (length == DCM_UndefinedLength || length <= limit) continue;
+    char tag[16];
+    std::snprintf(tag, sizeof tag, "(%04X,%04X)", unsigned{object->getGTag()},
+                  unsigned{object->getETag()});
+    throw Refusal{std::string("damaged DICOM file: element ") + tag + " declares " +
+                  std::to_string(length) + " bytes, more than the " + std::to_string(file_bytes) +
+                  "-byte file holds"};
+  }
+}
+
 std::uint64_t file_size_or_zero(const std::filesystem::path& file) {
   std::error_code error;
   const auto size = std::filesystem::file_size(file, error);
@@ -176,6 +201,12 @@ void read_headers_or_throw(const std::filesystem::path& file, const HeaderReadOp
   const OFCondition loaded =
       format.loadFile(OFFilename(file.c_str()), EXS_Unknown, EGL_noChange, kLazyValueBytes,
                       ERM_autoDetect);
+  try {
+    check_value_lengths(format, file_bytes, nesting.deflated);
+  } catch (const Refusal&) {
+    result.kind = FileKind::unreadable;
+    throw;
+  }
   DcmDataset& dataset = *format.getDataset();
   SliceHeader header;
   header.path = file;

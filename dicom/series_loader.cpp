@@ -81,9 +81,13 @@ LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
   const core::VolumeSize size{series.columns, series.rows, geometry.output_slices};
   const std::size_t slice_voxels = std::size_t{series.columns} * series.rows;
   const std::uint64_t acquired_bytes = std::uint64_t{slice_voxels} * series.slices.size() * 4;
-  const std::uint64_t grid_bytes = static_cast<std::uint64_t>(size.voxels()) * 4;
-  const std::uint64_t needed = grid_bytes + (geometry.needs_resampling ? acquired_bytes : 0);
-  if (needed > options.max_volume_bytes) {
+  // In double: a resampled grid of 65535² × 2^31 voxels would wrap a 64-bit byte count.
+  const double grid_bytes = static_cast<double>(size.voxels()) * 4;
+  const double needed_bytes =
+      grid_bytes + (geometry.needs_resampling ? static_cast<double>(acquired_bytes) : 0);
+  const std::uint64_t needed = needed_bytes >= 0x1p63 ? std::uint64_t{1} << 63
+                                                      : static_cast<std::uint64_t>(needed_bytes);
+  if (needed_bytes > static_cast<double>(options.max_volume_bytes)) {
     throw LoadError("series " + series.id + " needs " + std::to_string(needed >> 20) +
                     " MiB, above the limit of " + std::to_string(options.max_volume_bytes >> 20) +
                     " MiB");

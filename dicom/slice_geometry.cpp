@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <numeric>
 
 namespace typemerge::dicom {
@@ -152,9 +153,12 @@ StackGeometry compute_stack_geometry(const std::vector<SliceHeader>& slices,
     std::string where = "between " + file_name(slices[geometry.order[k]]) + " and " +
                         file_name(slices[geometry.order[k + 1]]);
     if (whole >= 2 && std::abs(ratio - whole) * median <= tolerance) {
-      irregularities.push_back(std::to_string(static_cast<long>(whole) - 1) +
-                               " missing slice(s) " + where + " (gap of " + mm(steps[k]) +
-                               ", step " + mm(median) + ")");
+      // Printed from the double: a gap can be any number of steps (positions are any
+      // finite DS), far beyond what an integer type holds.
+      char missing[320];  // the largest double has 309 digits
+      std::snprintf(missing, sizeof missing, "%.0f", whole - 1);
+      irregularities.push_back(std::string(missing) + " missing slice(s) " + where +
+                               " (gap of " + mm(steps[k]) + ", step " + mm(median) + ")");
     } else {
       irregularities.push_back("step of " + mm(steps[k]) + " " + where + " (median " +
                                mm(median) + ")");
@@ -178,9 +182,17 @@ StackGeometry compute_stack_geometry(const std::vector<SliceHeader>& slices,
   }
   // Resample at the smallest step, so no acquired slice is thinned out.
   const double step = *std::min_element(steps.begin(), steps.end());
+  // Positions are any finite DS, so depth / step can exceed every integer type; a grid of
+  // more than 2^31 slices is no CT volume (and would overflow the voxel count).
+  const double grid_slices = std::floor(depth / step + 1e-6) + 1;
+  if (!(grid_slices <= double{std::numeric_limits<std::int32_t>::max()})) {
+    geometry.error = summary + "; resampling at the smallest step (" + mm(step) + ") over " +
+                     mm(depth) + " would need more than 2^31 slices";
+    return geometry;
+  }
   geometry.needs_resampling = true;
   geometry.slice_step_mm = step;
-  geometry.output_slices = static_cast<std::int64_t>(std::floor(depth / step + 1e-6)) + 1;
+  geometry.output_slices = static_cast<std::int64_t>(grid_slices);
   geometry.index_to_patient.axes[2] = scale(per_mm, step);
   geometry.warnings.push_back(summary + "; resampled linearly to " +
                               std::to_string(geometry.output_slices) + " slices of " + mm(step));

@@ -14,6 +14,8 @@ packages=(
   libtbb-dev              # parallel slabs and decoding
   libgtest-dev libgmock-dev libbenchmark-dev
   dcm2niix                # independent reference for the loader tests
+  clang libclang-rt-14-dev  # fuzz/: Clang 14 and its libFuzzer + sanitizer runtimes
+  locales tzdata          # determinism tests: a comma-decimal locale (localedef), time zones
 )
 
 missing=()
@@ -26,4 +28,14 @@ if ((${#missing[@]})); then
   echo "installing: ${missing[*]}" >&2
   $sudo_cmd apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2
+fi
+
+# The determinism tests compare outputs under a comma-decimal locale.
+if ! locale -a 2>/dev/null | grep -qi '^de_DE\.utf-\?8$'; then
+  sudo_cmd=""
+  [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  echo "generating locale de_DE.UTF-8" >&2
+  $sudo_cmd sed -i 's/^# *\(de_DE.UTF-8 UTF-8\)/\1/' /etc/locale.gen
+  grep -q '^de_DE.UTF-8 UTF-8' /etc/locale.gen || echo 'de_DE.UTF-8 UTF-8' | $sudo_cmd tee -a /etc/locale.gen >/dev/null
+  $sudo_cmd locale-gen >&2
 fi

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The README's second command: set up, build and run the whole test suite, twice: an optimised
-# build, then an AddressSanitizer + UndefinedBehaviorSanitizer build. Real CT data is taken from
+# build, then an AddressSanitizer + UndefinedBehaviorSanitizer build; then a short fuzz run of
+# every libFuzzer target (scripts/fuzz.sh, Clang; 20 s each). Real CT data is taken from
 # TYPEMERGE_DATA (default: ../shared/data beside the checkout); tests needing it skip without it.
 set -euo pipefail
 here="$(cd "$(dirname "$0")/.." && pwd)"
@@ -16,3 +17,6 @@ ctest --test-dir "$here/build" --output-on-failure --parallel "$jobs"
   -DTYPEMERGE_SANITIZE=address,undefined -DTYPEMERGE_WARNINGS_AS_ERRORS=ON
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir "$here/build-asan" --output-on-failure --parallel "$jobs"
+
+# Short fuzz run (about a minute). A missing clang fails here, loudly: fuzz.sh exits non-zero.
+"$here/scripts/fuzz.sh" "${TYPEMERGE_FUZZ_SECONDS:-20}" "$here/build-fuzz"

@@ -203,6 +203,9 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
   command->add_flag("--center", options.center,
                     "Move the surface so its bounding box is centred on 0 (for printing)");
   command->add_option("--report", options.report, "Write a JSON report of the run");
+  command->add_flag("--show-descriptions", options.show_descriptions,
+                    "Put the series' SeriesDescription in the report (free text that can "
+                    "identify the patient; left out by default)");
 }
 
 int run_convert(const ConvertOptions& options, std::ostream& log) {
@@ -239,7 +242,6 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   for (const auto& w : loaded.warnings) log << "warning: " << w << "\n";
   const auto& size = loaded.volume.size();
   report["input"] = {{"series", series.id},
-                     {"description", series.description},
                      {"size", {size.nx, size.ny, size.nz}},
                      {"spacing_mm", {loaded.volume.geometry().spacing(0),
                                      loaded.volume.geometry().spacing(1),
@@ -248,6 +250,8 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                      {"hu_range", {loaded.min_hu, loaded.max_hu}},
                      {"warnings", loaded.warnings},
                      {"load_ms", load_ms}};
+  // Free text that can identify the patient: only on request.
+  if (options.show_descriptions) report["input"]["description"] = series.description;
 
   // Preprocessing, in a fixed order: table removal (on the data as acquired), crop (less to
   // filter), denoise, resample.

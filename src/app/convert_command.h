@@ -36,6 +36,7 @@ struct ConvertOptions {
   bool ascii_stl = false;
   std::string space = "lps";  // lps | ras
   bool center = false;
+  bool show_descriptions = false;  // put the free-text SeriesDescription in the report
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);

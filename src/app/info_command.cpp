@@ -52,11 +52,11 @@ std::string format(const char* pattern, double a, double b, double c) {
   return text;
 }
 
-json series_json(const dicom::SeriesInfo& series, const SeriesValues& values, bool is_default) {
+json series_json(const dicom::SeriesInfo& series, const SeriesValues& values, bool is_default,
+                 bool show_description) {
   const auto& g = series.geometry;
   json item = {
       {"id", series.id},
-      {"description", series.description},
       {"modality", series.modality},
       {"kernel", series.convolution_kernel},
       {"series_number", series.series_number},
@@ -69,6 +69,7 @@ json series_json(const dicom::SeriesInfo& series, const SeriesValues& values, bo
       {"orientation", orientation_label(series)},
       {"warnings", g.warnings},
   };
+  if (show_description) item["description"] = series.description;
   if (!series.role_reason.empty()) item["role_reason"] = series.role_reason;
   if (!g.ok()) item["refusal"] = g.error;
   if (!values.error.empty()) item["refusal"] = values.error;
@@ -90,7 +91,7 @@ json series_json(const dicom::SeriesInfo& series, const SeriesValues& values, bo
 }
 
 void print_text(const dicom::FolderScan& scan, const std::vector<SeriesValues>& values,
-                bool list_skipped, std::ostream& out) {
+                const InfoOptions& options, std::ostream& out) {
   out << scan.series.size() << " series in " << scan.files_seen << " files ("
       << scan.skipped.size() << " skipped)\n";
   for (std::size_t s = 0; s < scan.series.size(); ++s) {
@@ -98,7 +99,9 @@ void print_text(const dicom::FolderScan& scan, const std::vector<SeriesValues>& 
     const auto& g = series.geometry;
     const bool is_default = scan.default_series == s;
     out << (is_default ? "* " : "  ") << series.id << "  " << series.modality;
-    if (!series.description.empty()) out << "  \"" << series.description << "\"";
+    if (options.show_descriptions && !series.description.empty()) {
+      out << "  \"" << series.description << "\"";
+    }
     out << "\n      ";
     if (series.role == dicom::SeriesRole::localizer) {
       out << "localizer, not a volume (" << series.role_reason << "), " << series.slices.size()
@@ -137,7 +140,7 @@ void print_text(const dicom::FolderScan& scan, const std::vector<SeriesValues>& 
   out << "skipped files:\n";
   for (const auto& [reason, files] : by_reason) {
     out << "  " << files.size() << " x " << reason;
-    if (!list_skipped) {
+    if (!options.list_skipped) {
       out << " (e.g. " << files.front()->path.string() << ")\n";
       continue;
     }
@@ -154,6 +157,9 @@ void add_info_command(CLI::App& app, InfoOptions& options) {
   add_input_options(*command, options.input);
   command->add_flag("--json", options.json, "Machine-readable output on stdout");
   command->add_flag("--list-skipped", options.list_skipped, "List every skipped file");
+  command->add_flag("--show-descriptions", options.show_descriptions,
+                    "Show each series' SeriesDescription (free text that can identify the "
+                    "patient; hidden by default)");
 }
 
 int run_info(const InfoOptions& options, std::ostream& out) {
@@ -165,7 +171,8 @@ int run_info(const InfoOptions& options, std::ostream& out) {
     json document = {{"files_seen", scan.files_seen}, {"series", json::array()},
                      {"skipped", json::array()}, {"warnings", scan.warnings}};
     for (std::size_t s = 0; s < scan.series.size(); ++s) {
-      document["series"].push_back(series_json(scan.series[s], values[s], scan.default_series == s));
+      document["series"].push_back(series_json(scan.series[s], values[s], scan.default_series == s,
+                                                 options.show_descriptions));
     }
     for (const auto& file : scan.skipped) {
       document["skipped"].push_back(
@@ -175,7 +182,7 @@ int run_info(const InfoOptions& options, std::ostream& out) {
         scan.default_series ? json(scan.series[*scan.default_series].id) : json(nullptr);
     out << document.dump(2) << "\n";
   } else {
-    print_text(scan, values, options.list_skipped, out);
+    print_text(scan, values, options, out);
   }
   return scan.default_series ? kExitOk : kExitInputRefused;
 }

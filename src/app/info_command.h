@@ -11,6 +11,8 @@ struct InfoOptions {
   InputOptions input;
   bool json = false;
   bool list_skipped = false;
+  // SeriesDescription is free text (it can hold a name): shown only when asked for.
+  bool show_descriptions = false;
 };
 
 void add_info_command(CLI::App& app, InfoOptions& options);

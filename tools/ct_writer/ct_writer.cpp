@@ -92,7 +92,10 @@ void register_encoders() {
 
 void put_string(DcmItem& item, const DcmTagKey& key, const std::string& value,
                 const std::filesystem::path& path) {
-  check(item.putAndInsertString(DcmTag(key), value.c_str(), static_cast<Uint32>(value.size())),
+  DcmTag tag(key);
+  // Private elements have no dictionary VR; write them as LO (what scanners mostly use).
+  if (key.isPrivate() && tag.getEVR() == EVR_UNKNOWN) tag.setVR(DcmVR(EVR_LO));
+  check(item.putAndInsertString(tag, value.c_str(), static_cast<Uint32>(value.size())),
         path, "cannot put " + tag_text(key));
 }
 

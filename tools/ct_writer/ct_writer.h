@@ -72,7 +72,8 @@ inline constexpr Tag kRescaleInterceptTag{0x0028, 0x1052};
 inline constexpr Tag kRescaleSlopeTag{0x0028, 0x1053};
 
 // An attribute written with its data-dictionary VR from text (DCMTK putAndInsertString rules:
-// multiple values separated by '\'). Not for sequences.
+// multiple values separated by '\'); a private element the dictionary does not know is
+// written as LO. Not for sequences.
 struct TagValue {
   Tag tag;
   std::string value;

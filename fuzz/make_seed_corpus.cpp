@@ -1,0 +1,139 @@
+// make_seed_corpus OUT_DIR: writes the starting corpora of the fuzz targets, so no binary
+// seed lives in git.
+//   OUT_DIR/dicom_file/      small CT files from ct_writer in every transfer syntax and
+//                            container, plus an Enhanced-CT-like multi-frame header and a
+//                            few broken variants (truncated, no pixel data, bad geometry);
+//   OUT_DIR/series_geometry/ byte strings decoding to regular, gapped and tilted stacks;
+//   OUT_DIR/extract/         byte strings decoding to a ball, a saddle and a checkerboard.
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "ct_writer/ct_writer.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+namespace ctw = typemerge::ct_writer;
+
+void write_bytes(const fs::path& file, const std::vector<std::uint8_t>& bytes) {
+  std::ofstream out(file, std::ios::binary | std::ios::trunc);
+  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+}
+
+void dicom_seeds(const fs::path& folder) {
+  using TS = ctw::TransferSyntax;
+  const TS syntaxes[] = {TS::implicit_little, TS::explicit_little, TS::explicit_big,
+                         TS::deflated_little, TS::jpeg_lossless,  TS::jpeg_ls_lossless,
+                         TS::rle_lossless};
+  auto base = [] {
+    ctw::CtSliceSpec spec;
+    spec.rows = 4;
+    spec.columns = 4;
+    spec.pixels.resize(16);
+    for (std::size_t i = 0; i < spec.pixels.size(); ++i) {
+      spec.pixels[i] = static_cast<std::uint16_t>(i * 200);
+    }
+    return spec;
+  };
+  int n = 0;
+  for (TS syntax : syntaxes) {
+    ctw::CtSliceSpec spec = base();
+    spec.transfer_syntax = syntax;
+    ctw::write_ct_slice(spec, folder / ("syntax_" + std::to_string(n++) + ".dcm"));
+  }
+  ctw::CtSliceSpec spec = base();
+  spec.container = ctw::Container::no_preamble;
+  ctw::write_ct_slice(spec, folder / "no_preamble.dcm");
+  spec.container = ctw::Container::dataset_only;
+  ctw::write_ct_slice(spec, folder / "dataset_only.dcm");
+  spec = base();
+  spec.pixel_representation = 1;
+  spec.pixel_padding_value = -2000;
+  spec.bits_stored = 16;
+  spec.high_bit = 15;
+  ctw::write_ct_slice(spec, folder / "signed_padding.dcm");
+  spec = base();
+  spec.bits_allocated = 8;
+  spec.bits_stored = 8;
+  spec.high_bit = 7;
+  ctw::write_ct_slice(spec, folder / "eight_bit.dcm");
+  spec = base();
+  spec.extra = {{{0x0028, 0x0008}, "2"}};  // NumberOfFrames without functional groups
+  ctw::write_ct_slice(spec, folder / "two_frames.dcm");
+  spec = base();
+  spec.truncate_to_bytes = 300;
+  ctw::write_ct_slice(spec, folder / "truncated.dcm");
+  spec = base();
+  spec.omit = {ctw::kPixelDataTag};
+  ctw::write_ct_slice(spec, folder / "no_pixels.dcm");
+  spec = base();
+  spec.pixel_spacing = "0\\1";
+  ctw::write_ct_slice(spec, folder / "zero_spacing.dcm");
+}
+
+void geometry_seeds(const fs::path& folder) {
+  // Layout (fuzz_series_geometry.cpp): policy, orientation pick, two spacings, base, step,
+  // slice count − 1, then per slice: variant, image type, series number, path, frames, frame,
+  // SOP instance, slice index. Small reals are "mode byte ≥ 2, then int8 × 0.5 mm".
+  auto small = [](std::vector<std::uint8_t>& b, std::int8_t half_mm) {
+    b.push_back(2);
+    b.push_back(static_cast<std::uint8_t>(half_mm));
+  };
+  for (int seed = 0; seed < 4; ++seed) {
+    std::vector<std::uint8_t> b;
+    b.push_back(seed == 1 ? 1 : 0);        // resample for the gapped one
+    b.push_back(seed == 3 ? 3 : 0);        // tilted orientation for the last
+    small(b, 1);
+    small(b, 1);                           // 0.5 mm pixels
+    small(b, 0); small(b, 0); small(b, 0);  // base
+    small(b, 0); small(b, 0); small(b, 4);  // step 2 mm in z
+    b.push_back(5);                        // six slices
+    for (std::uint8_t k = 0; k < 6; ++k) {
+      b.insert(b.end(), {0, 0, 0, k, 0, 0, k});
+      b.push_back(seed == 1 && k >= 3 ? static_cast<std::uint8_t>(k + 2) : k);
+    }
+    write_bytes(folder / ("stack_" + std::to_string(seed)), b);
+  }
+}
+
+void extract_seeds(const fs::path& folder) {
+  for (int seed = 0; seed < 3; ++seed) {
+    std::vector<std::uint8_t> b;
+    b.push_back(seed == 2 ? 0 : 1);  // scheme: levels or bytes
+    b.insert(b.end(), {6, 6, 6});
+    b.push_back(seed == 0 ? 0 : 1);  // iso
+    b.push_back(0);
+    for (int k = 0; k < 6; ++k) {
+      for (int j = 0; j < 6; ++j) {
+        for (int i = 0; i < 6; ++i) {
+          const int d2 = (i - 3) * (i - 3) + (j - 3) * (j - 3) + (k - 3) * (k - 3);
+          if (seed == 0) b.push_back(static_cast<std::uint8_t>(d2 < 6 ? 20 : 0));
+          if (seed == 1) b.push_back(static_cast<std::uint8_t>((i - 3) * (j - 3)));
+          if (seed == 2) b.push_back(static_cast<std::uint8_t>((i + j + k) % 2 ? 3 : 0));
+        }
+      }
+    }
+    write_bytes(folder / ("volume_" + std::to_string(seed)), b);
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: make_seed_corpus OUT_DIR\n");
+    return 2;
+  }
+  const fs::path out = argv[1];
+  for (const char* name : {"dicom_file", "series_geometry", "extract"}) {
+    fs::create_directories(out / name);
+  }
+  dicom_seeds(out / "dicom_file");
+  geometry_seeds(out / "series_geometry");
+  extract_seeds(out / "extract");
+  return 0;
+}

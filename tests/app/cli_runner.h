@@ -1,0 +1,63 @@
+// Runs the typemerge executable for the app tests: exit code, stdout and stderr apart, with an
+// optional environment prefix ("LC_ALL=C TZ=UTC") and wrapper ("taskset -c 0").
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+namespace typemerge::test {
+
+struct CliRun {
+  int exit_code = -1;
+  std::string out;  // stdout
+  std::string err;  // stderr
+};
+
+inline std::string read_file_bytes(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// `environment` and `wrapper` go before the executable, e.g. run_cli("info DIR", "TZ=UTC").
+inline CliRun run_cli(const std::string& arguments, const std::string& environment = "",
+                      const std::string& wrapper = "") {
+  static int counter = 0;
+  const std::filesystem::path err_file =
+      std::filesystem::temp_directory_path() /
+      ("typemerge_cli_stderr_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
+  const std::string command = (environment.empty() ? "" : "env " + environment + " ") + wrapper +
+                              (wrapper.empty() ? "" : " ") + TYPEMERGE_EXE + " " + arguments +
+                              " 2>" + err_file.string();
+  CliRun result;
+  FILE* pipe = popen(command.c_str(), "r");
+  if (pipe == nullptr) return result;
+  std::array<char, 4096> buffer{};
+  while (std::size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) {
+    result.out.append(buffer.data(), n);
+  }
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  result.err = read_file_bytes(err_file);
+  std::error_code error;
+  std::filesystem::remove(err_file, error);
+  return result;
+}
+
+// A new empty folder under the temporary folder, private to this process (ctest runs the
+// tests of one executable in parallel processes).
+inline std::filesystem::path fresh_dir(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("typemerge_app_" + std::to_string(::getpid()) + "_" + name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+}  // namespace typemerge::test

@@ -1,0 +1,158 @@
+// Inputs found by the fuzz targets (fuzz/), replayed: each failed before its fix.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "ct_writer/ct_writer.h"
+#include "dicom/header_reader.h"
+#include "dicom/series_loader.h"
+#include "dicom/series_scan.h"
+#include "dicom/slice_geometry.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using namespace typemerge::dicom;
+
+std::string from_hex(const std::string& hex) {
+  std::string bytes;
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) {
+    bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  }
+  return bytes;
+}
+
+fs::path write_temp(const std::string& name, const std::string& bytes) {
+  const fs::path file = fs::temp_directory_path() / ("typemerge_fuzz_regression_" + name);
+  std::ofstream(file, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  return file;
+}
+
+// fuzz_dicom_file, oom-3b2b5c89…: a 951-byte file whose header declares a 2.4 GB value.
+// DCMTK allocated the declared length on first access to the value (libFuzzer: malloc of
+// 2466250779 bytes in DcmByteString::newValueField from read_headers). Now refused before
+// any value is read.
+TEST(FuzzRegressions, HugeDeclaredValueLengthIsRefusedBeforeAllocating) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b2000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491200"
+    "312e322e3834302e31303030382e312e32000200120055492000312e322e3832362e302e312e333638303034332e3130"
+    "2e313233342e302e31000200130053481000545950454d474552455f4354575f312008000800160000004f524947494e"
+    "414c5c5052494d4152595c415849414c080016001a000093939393939393939393939393939393939393939393939393"
+    "939393939393939393939393939393939393939393939393939393939393939393939393939393939393939393939393"
+    "93939393939393939393939393939393939393939393939393939393939300312e322e3834302e31303030382e352e31"
+    "2e342e312e312e32000800180020000000312e322e3832362e302e312e333638303034332e31302e313233342e312e31"
+    "000800200008000000323030303031303108003000060000003030303030300800500000000000080060000200000043"
+    "540800700014000000747970656d657267652063745f777269746572200800900000000000080030101000000053796e"
+    "7468657469632073747564792008003e100c00000053796e746865746963204354100010001200000053796e74686574"
+    "69635e5068616e746f6d20100020000a00000053594e5448455449432010003000080000003139303030313031100040"
+    "00020000004f201800500002000000312018006000040000003132302018000051040000004846532020000d00200000"
+    "00312e322e3832362e302e312e333638303034332e31302e313233342e312e320020000e0020000000312e322e383236"
+    "2e302e312e333638303034332e31302e313233342e312e33002000ff1dffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffff0000002d313032342028005310020000003120e0"
+    "7f1000200000000000c900900158022003e803b004780540060807d00798086009280af00ab80b"
+  );
+  ASSERT_EQ(reproducer.size(), 951u);
+  const HeaderReadResult read = read_headers(write_temp("oom.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+  EXPECT_NE(read.skip_reason.find("declares"), std::string::npos) << read.skip_reason;
+}
+
+// The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
+TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
+  typemerge::ct_writer::CtSliceSpec spec;
+  spec.transfer_syntax = typemerge::ct_writer::TransferSyntax::implicit_little;
+  spec.patient_name = "Length^Canary";  // 14 bytes with its padding
+  const fs::path file = fs::temp_directory_path() / "typemerge_fuzz_regression_length.dcm";
+  typemerge::ct_writer::write_ct_slice(spec, file);
+  std::ifstream in(file, std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string header("\x10\x00\x10\x00\x0e\x00\x00\x00", 8);
+  const std::size_t at = bytes.find(header);
+  ASSERT_NE(at, std::string::npos);
+  bytes.replace(at + 4, 4, std::string("\x00\x00\x00\x80", 4));
+  const HeaderReadResult read = read_headers(write_temp("length.dcm", bytes), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+  EXPECT_NE(read.skip_reason.find("(0010,0010) declares 2147483648 bytes"), std::string::npos)
+      << read.skip_reason;
+}
+
+SliceHeader slice_at(double z, std::uint16_t size = 16) {
+  SliceHeader h;
+  h.kind = FileKind::ct_image;
+  h.modality = "CT";
+  h.study_uid = "1.1";
+  h.series_uid = "1.2";
+  h.frame_of_reference_uid = "1.3";
+  h.image_type = "ORIGINAL\\PRIMARY\\AXIAL";
+  h.path = "/nonexistent/typemerge/z" + std::to_string(z);
+  h.sop_instance_uid = "1.4." + std::to_string(z);
+  h.rows = size;
+  h.columns = size;
+  h.bits_allocated = 16;
+  h.bits_stored = 12;
+  h.high_bit = 11;
+  h.photometric = "MONOCHROME2";
+  h.orientation = std::array<double, 6>{1, 0, 0, 0, 1, 0};
+  h.pixel_spacing = std::array<double, 2>{1, 1};
+  h.position = Vec3{0, 0, z};
+  return h;
+}
+
+// fuzz_series_geometry, crash-121a6ee…: a gap of 3e155 slice steps was converted to long for
+// the "N missing slice(s)" message (UBSan: value outside the range of 'long'). Positions are
+// any finite DS, so the count is printed from the double.
+TEST(FuzzRegressions, AGapOfMoreStepsThanALongHoldsIsReported) {
+  const std::vector<SliceHeader> slices = {slice_at(0), slice_at(1), slice_at(2), slice_at(3),
+                                           slice_at(3 + 1e20)};
+  const StackGeometry g = compute_stack_geometry(slices, {});
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error.find("100000000000000000000 missing slice(s)"), std::string::npos) << g.error;
+}
+
+// The same positions with --resample-spacing asked for 1e20 grid slices: the float → int64
+// conversion of the slice count was undefined and the count meaningless. Refused now.
+TEST(FuzzRegressions, ResamplingToMoreThan2To31SlicesIsRefused) {
+  const std::vector<SliceHeader> slices = {slice_at(0), slice_at(1), slice_at(2), slice_at(3),
+                                           slice_at(3 + 1e20)};
+  GeometryOptions options;
+  options.spacing = SpacingPolicy::resample;
+  const StackGeometry g = compute_stack_geometry(slices, options);
+  ASSERT_FALSE(g.ok());
+  EXPECT_NE(g.error.find("more than 2^31 slices"), std::string::npos) << g.error;
+}
+
+// Found while fixing the above: a grid of 65535² × 2^30 voxels has 2^64 bytes of floats,
+// which wrapped the 64-bit byte count to a few GB and passed the size limit.
+TEST(FuzzRegressions, VolumeByteCountDoesNotWrap) {
+  const double voxels_per_slice = 65535.0 * 65535.0;
+  const double grid_slices = std::ceil(std::ldexp(1.0, 62) / voxels_per_slice);
+  const std::vector<SliceHeader> slices = {slice_at(0, 65535), slice_at(1, 65535),
+                                           slice_at(grid_slices - 1, 65535)};
+  GeometryOptions options;
+  options.spacing = SpacingPolicy::resample;
+  const auto series = group_into_series(slices, options);
+  ASSERT_EQ(series.size(), 1u);
+  ASSERT_TRUE(series[0].usable()) << series[0].geometry.error;
+  ASSERT_EQ(series[0].geometry.output_slices, static_cast<std::int64_t>(grid_slices));
+  LoadOptions load;
+  load.max_volume_bytes = std::uint64_t{1} << 40;
+  try {
+    (void)load_series(series[0], load);
+    ADD_FAILURE() << "loaded";
+  } catch (const LoadError& error) {
+    EXPECT_NE(std::string(error.what()).find("above the limit"), std::string::npos) << error.what();
+  }
+}
+
+}  // namespace
