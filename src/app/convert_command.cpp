@@ -189,6 +189,11 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
       ->check(CLI::PositiveNumber);
   command->add_flag("--crop-tissue", options.crop_to_tissue,
                     "Crop to the bounding box of the body (> -400 HU) first");
+  command->add_option("--crop-mm", options.crop_box_mm,
+                      "Crop to an LPS box X0,Y0,Z0,X1,Y1,Z1 in mm first (e.g. to leave out the "
+                      "face: keep y above the face's front)")
+      ->delimiter(',')
+      ->expected(6);
   auto* remove_table = command->add_flag(
       "--remove-table", options.remove_table,
       "Clear everything outside the body (scanner table, rails, mattress) to air first; "
@@ -197,6 +202,10 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
       ->excludes(remove_table);
   command->add_flag("--preview", options.preview, "Also write a shaded PNG beside each STL");
   command->add_flag("--ascii", options.ascii_stl, "ASCII STL instead of binary");
+  command->add_option("--threads", options.threads,
+                      "Extraction threads (default 0: all cores); outputs are identical for any "
+                      "value")
+      ->check(CLI::Range(0u, 256u));
   command->add_option("--space", options.space,
                       "Coordinates of the output: lps (DICOM, 3D Slicer's STL default) or ras")
       ->check(CLI::IsMember({"lps", "ras"}));
@@ -266,6 +275,16 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
       for (const auto& w : step.record.warnings) log << "warning: " << w << "\n";
       steps.push_back(record_json(step.record, ms_since(start)));
     }
+    if (options.crop_box_mm.size() == 6) {
+      const auto start = Clock::now();
+      const auto& b = options.crop_box_mm;
+      preprocess::PatientBox box{{std::min(b[0], b[3]), std::min(b[1], b[4]), std::min(b[2], b[5])},
+                                 {std::max(b[0], b[3]), std::max(b[1], b[4]), std::max(b[2], b[5])}};
+      auto step = preprocess::crop_to_patient_box(volume, box);
+      volume = std::move(step.volume);
+      for (const auto& w : step.record.warnings) log << "warning: " << w << "\n";
+      steps.push_back(record_json(step.record, ms_since(start)));
+    }
     if (options.crop_to_tissue) {
       const auto start = Clock::now();
       auto step = preprocess::crop_to_tissue(volume, {});
@@ -297,6 +316,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   PipelineOptions pipeline;
   pipeline.algorithm = options.algorithm;
   pipeline.close_borders = !options.open_borders;
+  pipeline.threads = options.threads;
   pipeline.finish = options.finish_options;
   pipeline.finish.enabled = options.finish != "none";
   pipeline.finish.min_component_mm3 = options.min_component_mm3;

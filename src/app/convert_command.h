@@ -31,9 +31,11 @@ struct ConvertOptions {
   std::string denoise = "none";  // none | gaussian | median | bilateral
   double voxel_size_mm = 0;      // > 0: resample to isotropic voxels of this size
   bool crop_to_tissue = false;
+  std::vector<double> crop_box_mm;  // x0,y0,z0,x1,y1,z1 in LPS mm
   bool remove_table = false;  // default on with presets
   bool keep_table = false;
   bool ascii_stl = false;
+  unsigned threads = 0;
   std::string space = "lps";  // lps | ras
   bool center = false;
   bool show_descriptions = false;  // put the free-text SeriesDescription in the report

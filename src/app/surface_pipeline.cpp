@@ -52,6 +52,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   SurfaceResult result;
   core::ExtractOptions extract;
   extract.close_borders = options.close_borders;
+  extract.threads = options.threads;
   extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
                                                 : core::ExtractOptions::Mode::consistent;
 

@@ -39,6 +39,7 @@ struct FinishOptions {
 struct PipelineOptions {
   std::string algorithm = "tm";  // tm | mc | classic
   bool close_borders = true;
+  unsigned threads = 0;  // extraction threads; 0 = all cores (the output does not depend on it)
   FinishOptions finish;
 };
 

@@ -414,7 +414,7 @@ TEST(Cli, SurfaceLinesUpWithTheNrrdVolume) {
 
 namespace {
 
-// Kills convert at moments spread over a whole run; under its final name there is then either
+// Kills convert at 50 moments spread over a whole run; under its final name there is then either
 // nothing or a complete, valid surface — never a truncated file.
 TEST(Cli, KilledRunsLeaveNoPartialOutput) {
   const fs::path out = fresh_dir("kill_out");
@@ -427,7 +427,7 @@ TEST(Cli, KilledRunsLeaveNoPartialOutput) {
       dup2(null, 1);
       dup2(null, 2);
       execl(TYPEMERGE_EXE, TYPEMERGE_EXE, "convert", sample.c_str(), "--preset", "bone", "--ascii",
-            "-o", stl.c_str(), static_cast<char*>(nullptr));
+            "--algorithm", "mc", "-o", stl.c_str(), static_cast<char*>(nullptr));
       _exit(127);
     }
     return pid;
@@ -442,10 +442,10 @@ TEST(Cli, KilledRunsLeaveNoPartialOutput) {
   const auto complete_size = fs::file_size(stl);
 
   int killed = 0;
-  for (int attempt = 0; attempt < 20; ++attempt) {
+  for (int attempt = 0; attempt < 50; ++attempt) {
     fs::remove(stl);
     const pid_t pid = start();
-    const double at = full_ms * (0.3 + 0.75 * attempt / 20.0);  // late: during the writes
+    const double at = full_ms * (0.3 + 0.75 * attempt / 50.0);  // late: during the writes
     std::this_thread::sleep_for(std::chrono::microseconds(static_cast<long>(at * 1000)));
     killed += ::kill(pid, SIGKILL) == 0;
     waitpid(pid, &status, 0);
@@ -456,6 +456,48 @@ TEST(Cli, KilledRunsLeaveNoPartialOutput) {
     }
   }
   EXPECT_GT(killed, 0);
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Cli, OutputDoesNotDependOnThreadCount) {
+  const std::string sample = std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series";
+  const fs::path out = fresh_dir("threads_out");
+  for (const char* algorithm : {"mc", "tm"}) {
+    for (const char* threads : {"1", "2", "3"}) {
+      const fs::path stl = out / (std::string(algorithm) + threads + ".stl");
+      ASSERT_EQ(run("convert " + sample + " --preset bone --algorithm " + algorithm +
+                    " --threads " + threads + " -o " + stl.string()).exit_code, 0);
+    }
+    auto bytes = [&](const char* threads) {
+      std::ifstream in(out / (std::string(algorithm) + threads + ".stl"), std::ios::binary);
+      return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    };
+    EXPECT_EQ(bytes("1"), bytes("2")) << algorithm;
+    EXPECT_EQ(bytes("1"), bytes("3")) << algorithm;
+    EXPECT_GT(bytes("1").size(), 84u);
+  }
+}
+
+}  // namespace
+
+namespace {
+
+TEST(Cli, CropBoxLeavesOutWhatIsOutside) {
+  // The ball spans x = −97 … −91 mm; a box ending at x = −94 keeps about half of it.
+  const fs::path dir = write_ball_series("crop");
+  const fs::path out = fresh_dir("crop_out");
+  ASSERT_EQ(run("convert " + dir.string() + " --iso 0 -o " + (out / "all.stl").string()).exit_code, 0);
+  const CommandRun cropped = run("convert " + dir.string() + " --iso 0 --crop-mm -200,-200,-200,-94,200,200 -o " +
+                                 (out / "half.stl").string());
+  ASSERT_EQ(cropped.exit_code, 0) << cropped.out;
+  const auto all = nlohmann::json::parse(run("stats --json " + (out / "all.stl").string()).out);
+  const auto half = nlohmann::json::parse(run("stats --json " + (out / "half.stl").string()).out);
+  EXPECT_TRUE(half["closed_manifold"].get<bool>());
+  EXPECT_LT(half["volume_mm3"].get<double>(), 0.75 * all["volume_mm3"].get<double>());
+  EXPECT_GT(half["volume_mm3"].get<double>(), 0.25 * all["volume_mm3"].get<double>());
 }
 
 }  // namespace
