@@ -7,15 +7,19 @@
 //   3. merge, cubes in scan order (z, y, x): pick a direction (D2, D3, FLAG of §4.1), then
 //      collapse each moving pair of C + d (D1) with the checks of §4.5, and remove the
 //      slivers the merge made (D6) — all in one transaction that is undone if any step fails;
+//      With slab_layers > 0 step 3 runs in three phases (merge_types): fixed z slabs
+//      concurrently, the cubes they left in slabs shifted by half a slab, the rest serially;
 //   4. a final sliver pass (finds none on every test surface; kept as a guard); 5. compact.
 //
 // Mesh state during merging: triangles keep their original vertex ids; a union-find `parent_`
 // maps an id to the vertex that absorbed it (a half-edge collapse a → b is parent[a] = b), and
 // `next_member_` links every class into a ring, so a vertex's current fan is the live
 // triangles incident to any member and the original MC vertices it absorbed are the members.
-// Classes are small (a run of at most run_cap vertices per direction), rings are spliced in
-// O(1), and nothing is allocated per vertex or per collapse: fans and links live in
-// fixed-size stack buffers (a larger fan is rejected, which only costs reduction).
+// A second ring (`next_fan_`) links only the members that still have live triangles, so a fan
+// is gathered without visiting absorbed vertices. Classes are bounded (max_class_vertices),
+// rings are spliced in O(1), and nothing is allocated per vertex or per collapse: fans and
+// links live in fixed-size stack buffers (a larger fan is rejected, which only costs
+// reduction).
 #include "core/type_merging.h"
 
 #include <algorithm>
@@ -25,9 +29,11 @@
 #include <limits>
 #include <numbers>
 #include <utility>
+#include <memory>
 #include <vector>
 
 #include "core/cube_tables.h"
+#include "core/parallel.h"
 
 namespace typemerge::core {
 
@@ -96,6 +102,7 @@ using TriangleId = std::uint32_t;
 
 constexpr VertexId kNoVertex = std::numeric_limits<VertexId>::max();
 constexpr TriangleId kNoTriangle = std::numeric_limits<TriangleId>::max();
+constexpr std::uint32_t kNoVersion = std::numeric_limits<std::uint32_t>::max();
 
 // Largest fan (triangles around one vertex) and link the checks handle; MC fans have at most
 // ~12 triangles, merged vertices a few times that.
@@ -176,22 +183,49 @@ struct Fan {
   bool overflow = false;
 };
 
+// The mesh and lattice state every worker of merge_types edits (see Merger). Workers of the
+// slab phase edit disjoint parts of it (Merger::in_region).
+struct MergeState {
+  std::vector<VertexId> parent;       // union-find: the vertex that absorbed this one
+  std::vector<VertexId> next_member;  // ring through each class
+  std::vector<VertexId> next_fan;     // ring through the members with live triangles
+  std::vector<std::uint32_t> class_size;  // members of the class, valid at its root
+  std::vector<float> z_low;   // lowest z of a member of the class, valid at its root
+  std::vector<float> z_high;  // highest z
+  std::vector<std::uint32_t> offset;  // CSR vertex → incident triangles
+  std::vector<TriangleId> incident;
+  std::vector<std::uint32_t> live_end;  // end of the still-live prefix of each CSR list
+  std::vector<std::uint8_t> alive;
+  std::vector<TriangleId> witness;    // hint: the triangle that last kept a vertex near
+  std::vector<std::uint32_t> witness_version;  // version of the witness when it was found
+  std::vector<std::uint32_t> version;  // per triangle: changes of shape so far
+
+  std::int32_t y_min = 0;
+  std::int32_t z_min = 0;
+  std::int64_t row_length = 0;
+  std::int64_t z_rows = 0;
+  std::vector<std::uint32_t> row_start;
+  std::vector<std::uint8_t> flag;     // FLAG of §4.1, per cube record
+  std::vector<std::uint8_t> run;      // cubes in the run that ends at this cube
+  std::vector<std::uint8_t> started;  // this cube merged with its successor
+};
+
 class Merger {
  public:
   Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-         const MergeOptions& options, MergeStats& stats)
-      : mesh_(mesh), cubes_(cubes), options_(options), stats_(stats) {
+         const MergeOptions& options, MergeState& state, MergeStats& stats)
+      : mesh_(mesh), cubes_(cubes), options_(options), state_(state), stats_(stats) {
     const double deg = std::numbers::pi / 180.0;
     cos_normal_change_ = std::cos(options.max_normal_change_deg * deg);
     cos_normal_gradient_ = std::cos(options.max_normal_to_gradient_deg * deg);
     epsilon2_ = options.epsilon_voxels * options.epsilon_voxels;
+    fan_slot_.assign(mesh.triangles.size(), 0);
   }
 
-  void run() {
+  // Builds the shared state (once, by one worker).
+  void build() {
     build_incidence();
     build_rows();
-    merge_cubes();
-    if (options_.remove_slivers) remove_slivers();
   }
 
   // Compacted output: surviving vertices in original order, live triangles in original order.
@@ -218,7 +252,6 @@ class Merger {
     return out;
   }
 
- private:
   // ---- Mesh state ------------------------------------------------------------------------
 
   void build_incidence() {
@@ -227,8 +260,14 @@ class Merger {
     parent_.resize(n);
     next_member_.resize(n);
     witness_.assign(n, kNoTriangle);
-    fan_slot_.assign(m, 0);
+    class_size_.assign(n, 1);
+    z_low_.resize(n);
+    for (std::size_t v = 0; v < n; ++v) z_low_[v] = mesh_.positions[v][2];
+    z_high_ = z_low_;
+    witness_version_.assign(n, kNoVersion);
+    version_.assign(m, 0);
     for (VertexId v = 0; v < n; ++v) parent_[v] = next_member_[v] = v;
+    next_fan_ = next_member_;
     alive_.assign(m, 1);
     // CSR: count, prefix sum, fill (flying-edges style exact allocation).
     offset_.assign(n + 1, 0);
@@ -255,6 +294,23 @@ class Merger {
       live_end_[v] = static_cast<std::uint32_t>(it - incident_.data());
     }
   }
+  // drop_dead, then takes each corner whose incidence list is now empty out of its class's fan
+  // ring (next_fan_), so gather_fan walks only members that still have live triangles. Only
+  // for final deaths (drop_dead's condition) and never for a root (its ring is spliced by
+  // later collapses and their rollbacks); a non-root member is out of any open transaction.
+  void retire(TriangleId t) {
+    drop_dead(t);
+    for (VertexId v : mesh_.triangles[t]) {
+      if (live_end_[v] != offset_[v] || next_fan_[v] == kNoVertex) continue;
+      const VertexId r = find(v);
+      if (r == v) continue;
+      VertexId p = r;
+      while (next_fan_[p] != v) p = next_fan_[p];
+      next_fan_[p] = next_fan_[v];
+      next_fan_[v] = kNoVertex;
+    }
+  }
+
 
   // Path compression only outside a merge transaction: a rollback resets parent[a] = a, which
   // would strand members that compression had pointed past a.
@@ -297,7 +353,7 @@ class Merger {
         }
         fan.triangles[fan.size++] = t;
       }
-      m = next_member_[m];
+      m = next_fan_[m];
     } while (m != r);
   }
 
@@ -322,6 +378,7 @@ class Merger {
     VertexId a = kNoVertex;
     VertexId b = kNoVertex;
     std::array<std::uint8_t, kMaxFan> state;  // 0 = not yet computed, 1 = dies, 2 = ready
+    std::array<std::uint8_t, kMaxFan> changed;  // 1 = has a as a corner: its shape changes
     std::array<std::array<P3, 3>, kMaxFan> corners;
     std::array<P3, kMaxFan> normal;  // (c1 − c0) × (c2 − c0), as within_epsilon computes it
     std::array<double, kMaxFan> normal2;
@@ -331,26 +388,31 @@ class Merger {
     }
   };
 
-  bool moved_triangle_near(MovedFan& moved, int i, const P3& p) {
-    if (moved.state[i] == 0) {
-      auto c = current(moved.fan->triangles[i]);
-      bool has_a = false;
-      bool has_b = false;
-      for (VertexId& v : c) {
-        has_a = has_a || v == moved.a;
-        has_b = has_b || v == moved.b;
-        if (v == moved.a) v = moved.b;
-      }
-      if (has_a && has_b) {
-        moved.state[i] = 1;
-      } else {
-        moved.state[i] = 2;
-        auto& q = moved.corners[i];
-        for (int k = 0; k < 3; ++k) q[k] = position(c[k]);
-        moved.normal[i] = cross3(sub(q[1], q[0]), sub(q[2], q[0]));
-        moved.normal2[i] = dot3(moved.normal[i], moved.normal[i]);
-      }
+  // Computes the moved geometry of fan triangle i once (state, corners, plane normal).
+  void prepare(MovedFan& moved, int i) {
+    if (moved.state[i] != 0) return;
+    auto c = current(moved.fan->triangles[i]);
+    bool has_a = false;
+    bool has_b = false;
+    for (VertexId& v : c) {
+      has_a = has_a || v == moved.a;
+      has_b = has_b || v == moved.b;
+      if (v == moved.a) v = moved.b;
     }
+    moved.changed[i] = has_a ? 1 : 0;
+    if (has_a && has_b) {
+      moved.state[i] = 1;
+      return;
+    }
+    moved.state[i] = 2;
+    auto& q = moved.corners[i];
+    for (int k = 0; k < 3; ++k) q[k] = position(c[k]);
+    moved.normal[i] = cross3(sub(q[1], q[0]), sub(q[2], q[0]));
+    moved.normal2[i] = dot3(moved.normal[i], moved.normal[i]);
+  }
+
+  bool moved_triangle_near(MovedFan& moved, int i, const P3& p) {
+    prepare(moved, i);
     if (moved.state[i] == 1) return false;
     // Distance test with a cheap exit: the distance to the triangle is at least the distance
     // to its plane (most candidate triangles are rejected by that alone).
@@ -363,8 +425,12 @@ class Merger {
 
   // Would every member of class r (the MC vertices it absorbed) stay within epsilon of the
   // fan of r after a → b (`moved`)? Each vertex remembers the triangle that last kept it within
-  // epsilon (witness_) and tries it first: a triangle away from a keeps its shape, so most
-  // re-checks end on the first test. Only the order of the tests changes, not their outcome.
+  // epsilon (witness_) with that triangle's shape version (witness_version_: version_ counts
+  // the changes of shape of a triangle, i.e. collapses and rollbacks at its corners). A witness
+  // that is current, in the fan and not moved by a → b still has the shape it was found near,
+  // so the member is near without a test (most members of a large class); otherwise it is
+  // tried first. Only the work changes, not the outcome: a test of such a witness would repeat
+  // the one that recorded it.
   bool class_within_epsilon(VertexId r, MovedFan& moved) {
     const Fan& fan = *moved.fan;
     // Where each fan triangle sits in the fan, for an O(1) witness lookup (stale entries of
@@ -374,18 +440,33 @@ class Merger {
     do {
       // r itself is a corner of every triangle of its fan, unless r is a, which moves.
       if (m != r || r == moved.a) {
-        const P3 p = position(m);
         int first = -1;
-        if (witness_[m] != kNoTriangle) {
-          const int slot = fan_slot_[witness_[m]];
-          if (slot < fan.size && fan.triangles[slot] == witness_[m]) first = slot;
+        const TriangleId w = witness_[m];
+        if (w != kNoTriangle) {
+          const int slot = fan_slot_[w];
+          if (slot < fan.size && fan.triangles[slot] == w) first = slot;
         }
-        bool near = first >= 0 && moved_triangle_near(moved, first, p);
-        for (int i = 0; i < fan.size && !near; ++i) {
-          if (i == first) continue;
-          if (moved_triangle_near(moved, i, p)) {
+        bool near = false;
+        if (first >= 0) {
+          prepare(moved, first);
+          if (moved.state[first] == 2 && moved.changed[first] == 0 &&
+              witness_version_[m] == version_[w]) {
             near = true;
-            witness_[m] = fan.triangles[i];
+          } else {
+            const P3 p = position(m);
+            near = moved_triangle_near(moved, first, p);
+            if (near) record_witness(m, moved.changed[first] != 0);
+          }
+        }
+        if (!near) {
+          const P3 p = position(m);
+          for (int i = 0; i < fan.size && !near; ++i) {
+            if (i == first) continue;
+            if (moved_triangle_near(moved, i, p)) {
+              near = true;
+              witness_[m] = fan.triangles[i];
+              record_witness(m, moved.changed[i] != 0);
+            }
           }
         }
         if (!near) return false;
@@ -395,11 +476,28 @@ class Merger {
     return true;
   }
 
+  // A witness found on a triangle that the collapse under test moves holds for the shape after
+  // the collapse: it becomes current only if the collapse is applied.
+  void record_witness(VertexId m, bool on_moved_triangle) {
+    if (on_moved_triangle) {
+      witness_version_[m] = kNoVersion;
+      pending_witness_.push_back(m);
+    } else {
+      witness_version_[m] = version_[witness_[m]];
+    }
+  }
+
   bool try_collapse(VertexId a_in, VertexId b_in) {
     const VertexId a = find(a_in);
     const VertexId b = find(b_in);
     if (a == b) return true;
     ++stats_.collapses_tried;
+    pending_witness_.clear();
+    if (!in_region(a) || !in_region(b)) return leave_region();
+    if (options_.max_class_vertices != 0 &&
+        class_size_[a] + class_size_[b] > options_.max_class_vertices) {
+      return reject(stats_.rejected_class_size);
+    }
 
     Fan fan_a;
     gather_fan(a, fan_a);
@@ -435,6 +533,9 @@ class Merger {
       }
     }
     if (link_a.overflow) return reject(stats_.rejected_fan_size);
+    for (int j = 0; j < link_a.size; ++j) {
+      if (!in_region(link_a.items[j])) return leave_region();
+    }
     for (int j = 0; j < link_a.size; ++j) {
       if (balance[static_cast<std::size_t>(j)] != 0) return reject(stats_.rejected_boundary);
     }
@@ -519,10 +620,15 @@ class Merger {
     }
 
     // Apply: a joins b's class; the two triangles on the edge (a, b) die.
-    JournalEntry entry{a, b, {0, 0}, 0};
+    JournalEntry entry{a, b, {0, 0}, 0, z_low_[b], z_high_[b]};
+    z_low_[b] = std::min(z_low_[b], z_low_[a]);
+    z_high_[b] = std::max(z_high_[b], z_high_[a]);
     parent_[a] = b;
     std::swap(next_member_[a], next_member_[b]);
+    std::swap(next_fan_[a], next_fan_[b]);
+    class_size_[b] += class_size_[a];
     for (int i = 0; i < fan_a.size; ++i) {
+      ++version_[fan_a.triangles[i]];  // a's triangles change shape
       // The corners as they are now that a is b.
       std::array<VertexId, 3> c = corners_a[i];
       for (VertexId& v : c) v = v == a ? b : v;
@@ -532,10 +638,11 @@ class Merger {
       }
     }
     assert(entry.killed_count == 2);
+    for (VertexId m : pending_witness_) witness_version_[m] = version_[witness_[m]];
     if (in_transaction_) {
       journal_.push_back(entry);
     } else {
-      for (int k = 0; k < entry.killed_count; ++k) drop_dead(entry.killed[k]);
+      for (int k = 0; k < entry.killed_count; ++k) retire(entry.killed[k]);
     }
     ++stats_.collapses_done;
     return true;
@@ -553,6 +660,8 @@ class Merger {
     VertexId b;
     std::array<TriangleId, 2> killed;
     int killed_count;
+    float b_low;  // z_low_ and z_high_ of b before
+    float b_high;
   };
 
   void begin_transaction() {
@@ -567,7 +676,7 @@ class Merger {
   void commit() {
     in_transaction_ = false;
     for (const JournalEntry& entry : journal_) {
-      for (int k = 0; k < entry.killed_count; ++k) drop_dead(entry.killed[k]);
+      for (int k = 0; k < entry.killed_count; ++k) retire(entry.killed[k]);
       const VertexId root = find(entry.b);
       if (parent_[entry.a] == root) continue;  // flattened already
       VertexId m = root;
@@ -582,7 +691,16 @@ class Merger {
     for (auto it = journal_.rbegin(); it != journal_.rend(); ++it) {
       for (int k = 0; k < it->killed_count; ++k) alive_[it->killed[k]] = 1;
       std::swap(next_member_[it->a], next_member_[it->b]);
+      std::swap(next_fan_[it->a], next_fan_[it->b]);
       parent_[it->a] = it->a;
+      class_size_[it->b] -= class_size_[it->a];
+      z_low_[it->b] = it->b_low;
+      z_high_[it->b] = it->b_high;
+      // a's triangles take back their old shape: a new version, so that witnesses found on
+      // the undone shape are not trusted.
+      Fan fan_a;
+      gather_fan(it->a, fan_a);
+      for (int i = 0; i < fan_a.size; ++i) ++version_[fan_a.triangles[i]];
     }
     stats_.collapses_done -= journal_.size();
     stats_.sliver_collapses = slivers_at_begin_;
@@ -614,12 +732,24 @@ class Merger {
             changed = true;
             touched.insert(end);
           }
+          if (out_of_region_) return false;
         }
       }
       if (touched.overflow) return false;
       if (!found) return true;
       if (!changed) return false;
     }
+    return false;
+  }
+
+  // Slab phases: may this worker read and change root v and its class? Yes when the whole
+  // class (its z extent) lies in the region.
+  bool in_region(VertexId v) const {
+    return z_low_[v] >= region_lo_ && z_high_[v] <= region_hi_;
+  }
+
+  bool leave_region() {
+    out_of_region_ = true;
     return false;
   }
 
@@ -651,6 +781,7 @@ class Merger {
     for (std::size_t r = 0; r + 1 < row_start_.size(); ++r) row_start_[r + 1] += row_start_[r];
     flag_.assign(cubes_.size(), kNoMergeDirection);
     run_.assign(cubes_.size(), 1);
+    started_.assign(cubes_.size(), 0);
   }
 
   std::int64_t row_of(std::int32_t y, std::int32_t z) const {
@@ -684,76 +815,148 @@ class Merger {
 
   // ---- Merging (spec §4.1 with §4.4 decisions) ----------------------------------------------
 
-  void merge_cubes() {
-    for (std::size_t r = 0; r < cubes_.size(); ++r) {
-      const unsigned index = cubes_[r].index;
-      const TypeEntry& entry = type_of(index);
-      if (entry.type == CubeType::kNone) continue;  // type 4 and every ambiguous cube (D11)
-      unsigned candidates = entry.merge;
-      if (entry.type == CubeType::kHexagon && options_.hexagon_all_lines) candidates = entry.lines;
-      // FLAG (§4.1): a cube absorbed along d may only continue the run along d.
-      if (flag_[r] != kNoMergeDirection) candidates &= 1u << flag_[r];
+  // Every cube record in scan order (slab_layers = 0).
+  void merge_all() {
+    for (std::size_t r = 0; r < cubes_.size(); ++r) merge_cube(r);
+  }
 
-      // D2 + D3: the direction with the longest look-ahead run of the same raw index whose
-      // next cube is not yet absorbed; ties go to the table order (primary first).
-      int best = -1;
-      int best_length = 0;
-      for (int d = 0; d < kMergeDirectionCount; ++d) {
-        if (((candidates >> d) & 1u) == 0) continue;
-        const std::int64_t next = step(r, d);
-        if (next < 0 || cubes_[static_cast<std::size_t>(next)].index != index ||
-            flag_[static_cast<std::size_t>(next)] != kNoMergeDirection) {
-          continue;
-        }
-        int length = 1;
-        while (length < options_.run_cap) {
-          const std::int64_t further = step(r, d, length + 1);
-          if (further < 0 || cubes_[static_cast<std::size_t>(further)].index != index) break;
-          ++length;
-        }
-        if (length > best_length) {
-          best = d;
-          best_length = length;
-        }
-      }
-      if (best < 0) continue;
-      if (run_[r] >= options_.run_cap) {  // D9
-        ++stats_.runs_capped;
-        continue;
-      }
-
-      // D1: the vertices of C + d on the rear edges move onto its front edges.
-      const std::size_t next = static_cast<std::size_t>(step(r, best));
-      const unsigned cut = kCubeCutEdges[index];
-      const MoveRow& row = kMoveTable[best];
-      bool ok = true;
-      SmallSet<16> touched;
-      begin_transaction();
-      for (int m = 0; m < row.move_count && ok; ++m) {
-        const int s = row.moves[m].source;
-        const int t = row.moves[m].target;
-        if (((cut >> s) & 1u) == 0 || ((cut >> t) & 1u) == 0) continue;
-        ok = try_collapse(edge_vertex(next, s), edge_vertex(next, t));
-        touched.insert(edge_vertex(next, t));
-      }
-      if (ok && !clean_touched_slivers(touched)) {
-        ++stats_.rejected_sliver;
-        ok = false;
-      }
-      if (!ok) {
-        // All or nothing: a partly merged cube would break the run structure FLAG assumes.
-        rollback();
-        ++stats_.merges_abandoned;
-        continue;
-      }
-      commit();
-      flag_[next] = static_cast<std::uint8_t>(best);
-      run_[next] = static_cast<std::uint8_t>(std::min(run_[r] + 1, 255));
-      ++stats_.cubes_merged_by_type[static_cast<std::size_t>(paper_type(entry.type))];
-      if (entry.type == CubeType::kHexagon) ++stats_.hexagon_merges;
-      if (entry.type == CubeType::kMinor) ++stats_.minor_merges;
-      ++stats_.merges_by_direction[static_cast<std::size_t>(best)];
+  // A slab phase for cube layers [z0, z1) (first and last: the slab is the lowest or highest
+  // of its phase): merges, in the order given, the records of `records` (in scan order, all in
+  // the slab) that it can merge inside the slab's region and appends the others to
+  // `deferred`.
+  void merge_slab(std::int32_t z0, std::int32_t z1, bool first, bool last,
+                  std::span<const std::size_t> records, std::vector<std::size_t>& deferred) {
+    enter_slab(z0, z1, first, last);
+    for (std::size_t r : records) {
+      if (!merge_cube(r)) deferred.push_back(r);
     }
+    leave_slab();
+  }
+
+  // The same for every record of layers [z0, z1).
+  void merge_slab(std::int32_t z0, std::int32_t z1, bool first, bool last,
+                  std::vector<std::size_t>& deferred) {
+    enter_slab(z0, z1, first, last);
+    const std::size_t end = layer_begin(z1);
+    for (std::size_t r = layer_begin(z0); r < end; ++r) {
+      if (!merge_cube(r)) deferred.push_back(r);
+    }
+    leave_slab();
+  }
+
+  // Region: the vertices a collapse of this slab may read or change (whole classes, see
+  // in_region). A collapse also reads the corners of the triangles around them (one cube, at
+  // most 1 voxel away in z) and drops dead triangles from those corners' lists; regions of
+  // concurrent slabs are more than 2 voxels apart, so no vertex, triangle or list is used by
+  // two of them. Cube records: only layers [z0, z1) (a direction into layer z1 defers the
+  // cube).
+  void enter_slab(std::int32_t z0, std::int32_t z1, bool first, bool last) {
+    region_lo_ = first ? -std::numeric_limits<float>::infinity() : static_cast<float>(z0) + 1.0f;
+    region_hi_ = last ? std::numeric_limits<float>::infinity() : static_cast<float>(z1) - 1.25f;
+    layer_end_ = last ? std::numeric_limits<std::int32_t>::max() : z1;
+  }
+
+  void leave_slab() {
+    region_lo_ = -std::numeric_limits<float>::infinity();
+    region_hi_ = std::numeric_limits<float>::infinity();
+    layer_end_ = std::numeric_limits<std::int32_t>::max();
+  }
+
+  // First record of cube layer z (records are in scan order).
+  std::size_t layer_begin(std::int32_t z) const {
+    if (cubes_.empty() || z <= z_min_) return 0;
+    if (z - z_min_ >= z_rows_) return cubes_.size();
+    return row_start_[static_cast<std::size_t>(row_of(y_min_, z))];
+  }
+
+  // Spec §4.1 for one cube. False when the cube must be merged in the serial phase instead
+  // (only in the slab phase: it needs a cube record or a vertex outside the slab); nothing
+  // has changed then, statistics included.
+  bool merge_cube(std::size_t r) {
+    const unsigned index = cubes_[r].index;
+    const TypeEntry& entry = type_of(index);
+    if (entry.type == CubeType::kNone) return true;  // type 4 and every ambiguous cube (D11)
+    unsigned candidates = entry.merge;
+    if (entry.type == CubeType::kHexagon && options_.hexagon_all_lines) candidates = entry.lines;
+    // FLAG (§4.1): a cube absorbed along d may only continue the run along d.
+    if (flag_[r] != kNoMergeDirection) candidates &= 1u << flag_[r];
+
+    // D2 + D3: the direction with the longest look-ahead run of the same raw index whose
+    // next cube is not yet absorbed; ties go to the table order (primary first). In scan
+    // order the next cube is never started; after a slab phase it may be (it began its own
+    // run), and is then not joined.
+    int best = -1;
+    int best_length = 0;
+    for (int d = 0; d < kMergeDirectionCount; ++d) {
+      if (((candidates >> d) & 1u) == 0) continue;
+      const std::int64_t next = step(r, d);
+      if (next < 0) continue;
+      const std::size_t n = static_cast<std::size_t>(next);
+      if (cubes_[n].z >= layer_end_) return false;
+      if (cubes_[n].index != index || flag_[n] != kNoMergeDirection || started_[n] != 0) {
+        continue;
+      }
+      int length = 1;
+      while (length < options_.run_cap) {
+        const std::int64_t further = step(r, d, length + 1);
+        if (further < 0 || cubes_[static_cast<std::size_t>(further)].index != index) break;
+        ++length;
+      }
+      if (length > best_length) {
+        best = d;
+        best_length = length;
+      }
+    }
+    if (best < 0) return true;
+    if (run_[r] >= options_.run_cap) {  // D9
+      ++stats_.runs_capped;
+      return true;
+    }
+
+    // D1: the vertices of C + d on the rear edges move onto its front edges.
+    const bool in_slab = layer_end_ != std::numeric_limits<std::int32_t>::max() ||
+                         region_lo_ != -std::numeric_limits<float>::infinity();
+    MergeStats before;
+    if (in_slab) before = stats_;
+    out_of_region_ = false;
+    const std::size_t next = static_cast<std::size_t>(step(r, best));
+    const unsigned cut = kCubeCutEdges[index];
+    const MoveRow& row = kMoveTable[best];
+    bool ok = true;
+    SmallSet<16> touched;
+    begin_transaction();
+    for (int m = 0; m < row.move_count && ok; ++m) {
+      const int s = row.moves[m].source;
+      const int t = row.moves[m].target;
+      if (((cut >> s) & 1u) == 0 || ((cut >> t) & 1u) == 0) continue;
+      ok = try_collapse(edge_vertex(next, s), edge_vertex(next, t));
+      touched.insert(edge_vertex(next, t));
+    }
+    bool slivers_ok = true;
+    if (ok && !out_of_region_) {
+      slivers_ok = clean_touched_slivers(touched);
+      ok = slivers_ok;
+    }
+    if (!ok || out_of_region_) {
+      // All or nothing: a partly merged cube would break the run structure FLAG assumes.
+      rollback();
+      if (out_of_region_) {
+        stats_ = before;
+        return false;
+      }
+      if (!slivers_ok) ++stats_.rejected_sliver;
+      ++stats_.merges_abandoned;
+      return true;
+    }
+    commit();
+    flag_[next] = static_cast<std::uint8_t>(best);
+    run_[next] = static_cast<std::uint8_t>(std::min(run_[r] + 1, 255));
+    started_[r] = 1;
+    ++stats_.cubes_merged_by_type[static_cast<std::size_t>(paper_type(entry.type))];
+    if (entry.type == CubeType::kHexagon) ++stats_.hexagon_merges;
+    if (entry.type == CubeType::kMinor) ++stats_.minor_merges;
+    ++stats_.merges_by_direction[static_cast<std::size_t>(best)];
+    return true;
   }
 
   // ---- Sliver clean-up (D6) -----------------------------------------------------------------
@@ -808,34 +1011,79 @@ class Merger {
     return false;
   }
 
+ private:
   const TriangleMesh& mesh_;
   std::span<const BoundaryCube> cubes_;
   const MergeOptions& options_;
+  MergeState& state_;
   MergeStats& stats_;
   double cos_normal_change_ = 0.0;
   double cos_normal_gradient_ = 0.0;
   double epsilon2_ = 0.0;
 
-  std::vector<VertexId> parent_;       // union-find: the vertex that absorbed this one
-  std::vector<VertexId> next_member_;  // ring through each class
-  std::vector<std::uint32_t> offset_;  // CSR vertex → incident triangles
-  std::vector<TriangleId> incident_;
-  std::vector<std::uint32_t> live_end_;  // end of the still-live prefix of each CSR list
-  std::vector<std::uint8_t> alive_;
-  std::vector<TriangleId> witness_;    // hint: the triangle that last kept a vertex near
-  std::vector<std::uint8_t> fan_slot_;  // scratch: position of a triangle in the fan checked
+  // The shared state, under the names the algorithm uses.
+  std::vector<VertexId>& parent_ = state_.parent;
+  std::vector<VertexId>& next_member_ = state_.next_member;
+  std::vector<VertexId>& next_fan_ = state_.next_fan;
+  std::vector<std::uint32_t>& class_size_ = state_.class_size;
+  std::vector<float>& z_low_ = state_.z_low;
+  std::vector<float>& z_high_ = state_.z_high;
+  std::vector<std::uint32_t>& offset_ = state_.offset;
+  std::vector<TriangleId>& incident_ = state_.incident;
+  std::vector<std::uint32_t>& live_end_ = state_.live_end;
+  std::vector<std::uint8_t>& alive_ = state_.alive;
+  std::vector<TriangleId>& witness_ = state_.witness;
+  std::vector<std::uint32_t>& witness_version_ = state_.witness_version;
+  std::vector<std::uint32_t>& version_ = state_.version;
+  std::int32_t& y_min_ = state_.y_min;
+  std::int32_t& z_min_ = state_.z_min;
+  std::int64_t& row_length_ = state_.row_length;
+  std::int64_t& z_rows_ = state_.z_rows;
+  std::vector<std::uint32_t>& row_start_ = state_.row_start;
+  std::vector<std::uint8_t>& flag_ = state_.flag;
+  std::vector<std::uint8_t>& run_ = state_.run;
+  std::vector<std::uint8_t>& started_ = state_.started;
+
+  // This worker's own scratch.
+  std::vector<VertexId> pending_witness_;  // witnesses found on moved triangles
+  std::vector<std::uint8_t> fan_slot_;  // position of a triangle in the fan checked
   bool in_transaction_ = false;
   std::size_t slivers_at_begin_ = 0;
   std::vector<JournalEntry> journal_;  // collapses of the open transaction (reused buffer)
 
-  std::int32_t y_min_ = 0;
-  std::int32_t z_min_ = 0;
-  std::int64_t row_length_ = 0;
-  std::int64_t z_rows_ = 0;
-  std::vector<std::uint32_t> row_start_;
-  std::vector<std::uint8_t> flag_;  // FLAG of §4.1, per cube record
-  std::vector<std::uint8_t> run_;   // cubes in the run that ends at this cube
+  // The slab this worker merges (slab phase), or everything (serial phase): vertices it may
+  // read or change, and the first cube layer it may not touch.
+  float region_lo_ = -std::numeric_limits<float>::infinity();
+  float region_hi_ = std::numeric_limits<float>::infinity();
+  std::int32_t layer_end_ = std::numeric_limits<std::int32_t>::max();
+  bool out_of_region_ = false;  // a collapse of the current merge needed a vertex outside
 };
+
+
+
+std::int32_t floor_div(std::int32_t a, std::int32_t b) {
+  return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+void add_stats(MergeStats& sum, const MergeStats& part) {
+  for (std::size_t i = 0; i < sum.cubes_merged_by_type.size(); ++i) {
+    sum.cubes_merged_by_type[i] += part.cubes_merged_by_type[i];
+  }
+  for (std::size_t i = 0; i < sum.merges_by_direction.size(); ++i) {
+    sum.merges_by_direction[i] += part.merges_by_direction[i];
+  }
+  std::size_t MergeStats::*const counters[] = {
+      &MergeStats::hexagon_merges,      &MergeStats::minor_merges,
+      &MergeStats::runs_capped,         &MergeStats::merges_abandoned,
+      &MergeStats::rejected_sliver,     &MergeStats::collapses_tried,
+      &MergeStats::collapses_done,      &MergeStats::rejected_boundary,
+      &MergeStats::rejected_link,       &MergeStats::rejected_fan_size,
+      &MergeStats::rejected_normal,     &MergeStats::rejected_gradient,
+      &MergeStats::rejected_distance,   &MergeStats::rejected_class_size,
+      &MergeStats::sliver_collapses,    &MergeStats::slivers_left,
+      &MergeStats::cubes_deferred};
+  for (auto counter : counters) sum.*counter += part.*counter;
+}
 
 }  // namespace
 
@@ -846,9 +1094,71 @@ void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
   MergeStats local;
   local.triangles_before = mesh.triangles.size();
   local.vertices_before = mesh.positions.size();
-  Merger merger(mesh, cubes, options, local);
-  merger.run();
-  mesh = merger.result();
+  MergeState state;
+  Merger serial(mesh, cubes, options, state, local);
+  serial.build();
+  if (options.slab_layers == 0 || cubes.empty()) {
+    serial.merge_all();
+  } else {
+    // Slab phases: fixed slabs of slab_layers (h) cube layers, counted from layer −1 (the
+    // first layer with close_borders), merged concurrently; then the cubes they left, in
+    // slabs shifted by h / 2; then, serially in scan order, the cubes still left. Nothing
+    // depends on the thread count.
+    const std::int32_t height = static_cast<std::int32_t>(options.slab_layers);
+    const std::int32_t z_first = cubes.front().z;
+    const std::int32_t z_last = cubes.back().z;
+    const std::int32_t slab_first = (z_first + 1) / height;
+    const std::int32_t slab_last = (z_last + 1) / height;
+    const std::size_t slab_count = static_cast<std::size_t>(slab_last - slab_first + 1);
+    const unsigned threads =
+        std::min<unsigned>(detail::resolve_threads(options.threads),
+                           static_cast<unsigned>(std::min<std::size_t>(slab_count, 1024)));
+    struct alignas(64) WorkerStats {  // own cache lines: counters change at every collapse
+      MergeStats stats;
+    };
+    std::vector<WorkerStats> worker_stats(threads);
+    std::vector<std::unique_ptr<Merger>> workers;
+    for (unsigned w = 0; w < threads; ++w) {
+      workers.push_back(
+          std::make_unique<Merger>(mesh, cubes, options, state, worker_stats[w].stats));
+    }
+    // Phase 1: slabs [k·h − 1, (k + 1)·h − 1).
+    std::vector<std::vector<std::size_t>> deferred(slab_count);
+    detail::run_parallel(slab_count, threads, [&](std::size_t i, unsigned w) {
+      const std::int32_t slab = slab_first + static_cast<std::int32_t>(i);
+      workers[w]->merge_slab(slab * height - 1, (slab + 1) * height - 1, i == 0,
+                             i + 1 == slab_count, deferred[i]);
+    });
+    // Phase 2: the cubes phase 1 left (near its slab borders), in slabs shifted by h / 2, so
+    // that those borders lie inside them.
+    std::vector<std::size_t> left;
+    for (const auto& list : deferred) left.insert(left.end(), list.begin(), list.end());
+    const std::int32_t shift = height / 2 + 1;
+    std::vector<std::span<const std::size_t>> groups;
+    std::vector<std::int32_t> group_slab;
+    for (std::size_t i = 0; i < left.size();) {
+      const std::int32_t slab = floor_div(cubes[left[i]].z + shift, height);
+      std::size_t j = i;
+      while (j < left.size() && floor_div(cubes[left[j]].z + shift, height) == slab) ++j;
+      groups.emplace_back(left.data() + i, j - i);
+      group_slab.push_back(slab);
+      i = j;
+    }
+    std::vector<std::vector<std::size_t>> deferred2(groups.size());
+    detail::run_parallel(groups.size(), threads, [&](std::size_t i, unsigned w) {
+      workers[w]->merge_slab(group_slab[i] * height - shift, (group_slab[i] + 1) * height - shift,
+                             i == 0, i + 1 == groups.size(), groups[i], deferred2[i]);
+    });
+    workers.clear();
+    for (const WorkerStats& part : worker_stats) add_stats(local, part.stats);
+    // Phase 3: what is left, serially in scan order.
+    for (const auto& list : deferred2) {
+      local.cubes_deferred += list.size();
+      for (std::size_t r : list) serial.merge_cube(r);
+    }
+  }
+  if (options.remove_slivers) serial.remove_slivers();
+  mesh = serial.result();
   local.triangles_after = mesh.triangles.size();
   local.vertices_after = mesh.positions.size();
   if (stats != nullptr) *stats = local;
@@ -856,11 +1166,14 @@ void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
 
 TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractOptions& extract,
                                  const MergeOptions& options, MergeStats* stats) {
+  MergeOptions merge = options;
+  merge.threads = std::max(detail::resolve_threads(options.threads),
+                           detail::resolve_threads(extract.threads));
   std::vector<BoundaryCube> cubes;
   ExtractOptions with_cubes = extract;
   with_cubes.cubes = &cubes;
   TriangleMesh mesh = extract_isosurface(volume, iso, with_cubes);
-  merge_types(mesh, cubes, options, stats);
+  merge_types(mesh, cubes, merge, stats);
   return mesh;
 }
 

@@ -42,8 +42,10 @@ CommandRun run(const std::string& arguments) {
   return result;
 }
 
+// Per process: two test runs on one machine (or ctest's parallel jobs) never share a folder.
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() / ("typemerge_cli_" + name);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("typemerge_cli_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;

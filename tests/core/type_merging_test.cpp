@@ -383,6 +383,78 @@ TEST(TypeMerging, DeterministicAndEqualToOneCall) {
   EXPECT_EQ(a.tm.normals, c.normals);
 }
 
+// The slab phase: with slabs of 4 layers every test volume has several slabs and most cubes
+// lie near a slab border. The output must not depend on the thread count, and must keep every
+// guarantee; slab_layers = 0 is the plain scan order.
+std::vector<Volume> slab_test_volumes() {
+  std::vector<Volume> volumes;
+  for (unsigned seed = 1; seed <= 4; ++seed) volumes.push_back(noise_volume(11, 10, 13, seed));
+  volumes.push_back(sphere_volume(26, 10.3, 12.4, 12.7, 12.2));
+  volumes.push_back(sphere_volume(46, 20.3, 22.4, 22.7, 22.2));
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 24.0);
+    std::array<std::array<double, 3>, 6> centres{};
+    for (auto& c : centres) c = {u(rng), u(rng), u(rng)};
+    volumes.push_back(sample_volume(24, 24, 24, [&](double x, double y, double z) {
+      double f = 0.0;
+      for (const auto& c : centres) {
+        const double d2 = (x - c[0]) * (x - c[0]) + (y - c[1]) * (y - c[1]) + (z - c[2]) * (z - c[2]);
+        f += std::exp(-d2 / 18.0);
+      }
+      return f - 0.4;
+    }));
+  }
+  return volumes;
+}
+
+TEST(TypeMerging, OutputIsIdenticalForAnyThreadCount) {
+  const std::vector<Volume> volumes = slab_test_volumes();
+  for (std::size_t i = 0; i < volumes.size(); ++i) {
+    SCOPED_TRACE(i);
+    const float iso = i < 4 ? 0.5f : 0.0f;
+    for (unsigned slab_layers : {0u, 1u, 4u, 16u}) {
+      SCOPED_TRACE(slab_layers);
+      MergeOptions options;
+      options.slab_layers = slab_layers;
+      const Extracted one = extract_both(volumes[i], iso, kClosed, options);
+      expect_same_topology(one);
+      EXPECT_TRUE(check_mesh(one.tm).closed_manifold());
+      EXPECT_LE(max_vertex_to_mesh_distance(one.mc, one.tm), options.epsilon_voxels + 1e-6);
+      if (slab_layers == 0) {
+        EXPECT_EQ(one.stats.cubes_deferred, 0u);
+      }
+      for (unsigned threads : {2u, 3u}) {
+        SCOPED_TRACE(threads);
+        options.threads = threads;
+        const Extracted many = extract_both(volumes[i], iso, kClosed, options);
+        EXPECT_EQ(many.tm.triangles, one.tm.triangles);
+        EXPECT_EQ(many.tm.positions, one.tm.positions);
+        EXPECT_EQ(many.tm.normals, one.tm.normals);
+        EXPECT_EQ(many.stats.collapses_done, one.stats.collapses_done);
+        EXPECT_EQ(many.stats.cubes_deferred, one.stats.cubes_deferred);
+      }
+    }
+  }
+}
+
+// The class bound: no limit merges at least as much on the sphere, and a tiny bound still
+// keeps every guarantee.
+TEST(TypeMerging, ClassBoundKeepsGuarantees) {
+  MergeOptions options;
+  const Volume volume = sphere_volume(26, 10.3, 12.4, 12.7, 12.2);
+  options.max_class_vertices = 2;
+  const Extracted bounded = extract_both(volume, 0.0f, kClosed, options);
+  options.max_class_vertices = 0;
+  const Extracted unbounded = extract_both(volume, 0.0f, kClosed, options);
+  expect_same_topology(bounded);
+  EXPECT_TRUE(check_mesh(bounded.tm).closed_manifold());
+  EXPECT_LE(max_vertex_to_mesh_distance(bounded.mc, bounded.tm), options.epsilon_voxels + 1e-6);
+  EXPECT_GT(bounded.stats.rejected_class_size, 0u);
+  EXPECT_EQ(unbounded.stats.rejected_class_size, 0u);
+  EXPECT_GE(bounded.tm.triangles.size(), unbounded.tm.triangles.size());
+}
+
 TEST(TypeMerging, EmptyVolumeGivesEmptyMesh) {
   const Volume volume = sample_volume(5, 5, 5, [](double, double, double) { return 0.0; });
   MergeStats stats;

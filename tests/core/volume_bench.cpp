@@ -4,7 +4,8 @@
 // change" can be checked from the command line. Not a test: never gates.
 //
 //   volume_bench (--nrrd FILE | --sphere N) [--iso 300,-500] [--threads 1,2] [--repeat 5]
-//                [--merge 1]
+//                [--merge 1] [--distance 0] [--max-class N (MergeOptions::max_class_vertices)]
+//                [--slab N (MergeOptions::slab_layers)]; --threads applies to MC and the merge
 //
 // Cells are (nx − 1)(ny − 1)(nz − 1), as in bench/extract_bench. Prints min and median ms.
 #include <algorithm>
@@ -77,6 +78,8 @@ int main(int argc, char** argv) {
   int repeat = 5;
   bool merge = true;
   bool distance = false;
+  long max_class = -1;  // -1: the MergeOptions default
+  long slab_layers = -1;
   for (int a = 1; a + 1 < argc; a += 2) {
     const std::string key = argv[a], value = argv[a + 1];
     if (key == "--nrrd") nrrd = value;
@@ -86,6 +89,8 @@ int main(int argc, char** argv) {
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else if (key == "--merge") merge = value != "0";
     else if (key == "--distance") distance = value != "0";
+    else if (key == "--max-class") max_class = std::stol(value);
+    else if (key == "--slab") slab_layers = std::stol(value);
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 2;
@@ -101,10 +106,11 @@ int main(int argc, char** argv) {
     const double centre = 0.5 * static_cast<double>(sphere - 1) + 0.13;
     volume = test::sphere_volume(sphere, 0.4 * static_cast<double>(sphere), centre,
                                  centre - 0.21, centre + 0.07);
-    iso_list = "0";
+    iso_list.assign(1, '0');
   } else {
     std::fprintf(stderr, "usage: volume_bench (--nrrd FILE | --sphere N) [--iso a,b] "
-                         "[--threads 1,2] [--repeat 5] [--merge 1]\n");
+                         "[--threads 1,2] [--repeat 5] [--merge 1] [--distance 0] "
+                         "[--max-class N] [--slab N]\n");
     return 2;
   }
   const VolumeSize& s = volume.size();
@@ -141,7 +147,11 @@ int main(int argc, char** argv) {
         }
         if (merge) {
           const auto t2 = Clock::now();
-          merge_types(mesh, cubes, {}, &stats);
+          MergeOptions merge_options;
+          if (max_class >= 0) merge_options.max_class_vertices = static_cast<std::uint32_t>(max_class);
+          if (slab_layers >= 0) merge_options.slab_layers = static_cast<unsigned>(slab_layers);
+          merge_options.threads = options.threads;
+          merge_types(mesh, cubes, merge_options, &stats);
           const auto t3 = Clock::now();
           merge_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t2).count());
         }
@@ -160,9 +170,10 @@ int main(int argc, char** argv) {
                     merge_ms.front(), merge_ms[merge_ms.size() / 2], total, cells / total * 1e-3,
                     mesh.triangles.size(), static_cast<unsigned long long>(hash_mesh(mesh)));
         std::printf("                     collapses %zu of %zu tried, slivers removed %zu left "
-                    "%zu, merges abandoned %zu, capped %zu\n",
+                    "%zu, merges abandoned %zu, capped %zu, deferred to the serial phase %zu\n",
                     stats.collapses_done, stats.collapses_tried, stats.sliver_collapses,
-                    stats.slivers_left, stats.merges_abandoned, stats.runs_capped);
+                    stats.slivers_left, stats.merges_abandoned, stats.runs_capped,
+                    stats.cubes_deferred);
         if (distance) {
           const auto t0 = Clock::now();
           const SymmetricMeshDistance d = mesh_distance(mc, mesh, options.threads);

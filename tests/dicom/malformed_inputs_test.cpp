@@ -2,6 +2,7 @@
 // documented outcome (loads, loads with a warning, a file skipped for a reason, or the series
 // refused for a reason) and never a crash (this suite also runs under ASan/UBSan).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <fstream>
@@ -321,7 +322,8 @@ class MalformedInput : public ::testing::TestWithParam<Case> {};
 
 TEST_P(MalformedInput, GivesItsDocumentedOutcome) {
   const Case& c = GetParam();
-  const fs::path dir = fs::temp_directory_path() / ("typemerge_malformed_" + c.name);
+  const fs::path dir = fs::temp_directory_path() /
+                       ("typemerge_malformed_" + std::to_string(::getpid()) + "_" + c.name);
   fs::remove_all(dir);
   fs::create_directories(dir);
   c.make(dir);

@@ -1,6 +1,7 @@
 // The loader against an independent reference, dcm2niix, on every real series in the shared
 // data: same dimensions, same spacing, same voxel values (up to dcm2niix's axis flips).
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -17,7 +18,8 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path run_dcm2niix(const fs::path& input, const std::string& name) {
-  const fs::path out = fs::temp_directory_path() / ("typemerge_dcm2niix_" + name);
+  const fs::path out =
+      fs::temp_directory_path() / ("typemerge_dcm2niix_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(out);
   fs::create_directories(out);
   const std::string command = "dcm2niix -z n -b n -f %s_%j -o '" + out.string() + "' '" +
