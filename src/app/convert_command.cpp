@@ -127,15 +127,10 @@ void to_output_space(core::TriangleMesh& mesh, const ConvertOptions& options) {
     }
   }
   if (!options.center || mesh.positions.empty()) return;
-  std::array<float, 3> lo = mesh.positions.front(), hi = lo;
-  for (const auto& p : mesh.positions) {
-    for (int c = 0; c < 3; ++c) {
-      lo[c] = std::min(lo[c], p[c]);
-      hi[c] = std::max(hi[c], p[c]);
-    }
-  }
+  // The bounds are float positions held in double, so the casts back are exact.
+  const core::BoundingBox box = core::bounding_box(mesh);
   for (auto& p : mesh.positions) {
-    for (int c = 0; c < 3; ++c) p[c] -= 0.5f * (lo[c] + hi[c]);
+    for (int c = 0; c < 3; ++c) p[c] -= 0.5f * (float(box.min[c]) + float(box.max[c]));
   }
 }
 
@@ -368,13 +363,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                            {"validity", check_json(step.check)}});
     }
     const core::MeshCheck& final_check = result.steps.back().check;
-    std::array<double, 3> lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
-    for (const auto& p : result.mesh.positions) {
-      for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min(lo[c], double(p[c]));
-        hi[c] = std::max(hi[c], double(p[c]));
-      }
-    }
+    const core::BoundingBox box = core::bounding_box(result.mesh);
     surfaces.push_back({{"name", spec.name},
                         {"label", spec.label},
                         {"hu_lo", spec.lo},
@@ -383,7 +372,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                         {"triangles", result.mesh.triangles.size()},
                         {"volume_ml", final_check.volume / 1000.0},
                         {"area_mm2", final_check.area},
-                        {"bounding_box_lps_mm", {lo, hi}},
+                        {"bounding_box_lps_mm", {box.min, box.max}},
                         {"validity", check_json(final_check)},
                         {"steps", step_list},
                         {"write_ms", write_ms},

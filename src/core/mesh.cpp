@@ -2,6 +2,7 @@
 #include "core/mesh.h"
 
 #include <cassert>
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -60,6 +61,17 @@ std::array<double, 3> facet_normal(const TriangleMesh& mesh,
     for (double& x : n) x /= length;
   }
   return n;
+}
+
+BoundingBox bounding_box(const TriangleMesh& mesh) {
+  BoundingBox box;
+  for (const auto& p : mesh.positions) {
+    for (int c = 0; c < 3; ++c) {
+      box.min[c] = std::min(box.min[c], double{p[c]});
+      box.max[c] = std::max(box.max[c], double{p[c]});
+    }
+  }
+  return box;
 }
 
 }  // namespace typemerge::core

@@ -35,6 +35,13 @@ void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry);
 std::array<double, 3> triangle_area_vector(const TriangleMesh& mesh,
                                            const std::array<std::uint32_t, 3>& triangle);
 
+// Axis-aligned bounds of the vertex positions; min > max (empty) for a mesh without vertices.
+struct BoundingBox {
+  std::array<double, 3> min{1e300, 1e300, 1e300};
+  std::array<double, 3> max{-1e300, -1e300, -1e300};
+};
+BoundingBox bounding_box(const TriangleMesh& mesh);
+
 // The unit facet normal, or (0, 0, 0) for a zero-area triangle.
 std::array<double, 3> facet_normal(const TriangleMesh& mesh,
                                    const std::array<std::uint32_t, 3>& triangle);

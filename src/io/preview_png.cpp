@@ -89,13 +89,8 @@ void write_preview_png(const core::TriangleMesh& mesh, const std::filesystem::pa
                        const PreviewOptions& options) {
   const int size = options.view_pixels;
   cv::Mat image(size, 2 * size, CV_8UC3, cv::Scalar(48, 40, 32));
-  std::array<Point, 2> box{Point{1e300, 1e300, 1e300}, Point{-1e300, -1e300, -1e300}};
-  for (const auto& p : mesh.positions) {
-    for (int c = 0; c < 3; ++c) {
-      box[0][c] = std::min(box[0][c], double(p[c]));
-      box[1][c] = std::max(box[1][c], double(p[c]));
-    }
-  }
+  const core::BoundingBox bounds = core::bounding_box(mesh);
+  const std::array<Point, 2> box{bounds.min, bounds.max};
   if (!mesh.positions.empty()) {
     render(mesh, kAnterior, box, size, image, 0);
     render(mesh, kLeftLateral, box, size, image, size);
