@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <map>
 #include <stdexcept>
 #include <tuple>
@@ -181,10 +182,12 @@ std::vector<SeriesInfo> group_into_series(std::vector<SliceHeader> headers,
   return series;
 }
 
-std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& series) {
+std::optional<std::size_t> choose_series(
+    const std::vector<SeriesInfo>& series,
+    const std::function<bool(const SeriesInfo&)>& eligible) {
   std::optional<std::size_t> best;
   for (std::size_t s = 0; s < series.size(); ++s) {
-    if (!series[s].usable()) continue;
+    if (!series[s].usable() || !eligible(series[s])) continue;
     if (!best) {
       best = s;
       continue;
@@ -198,6 +201,10 @@ std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& 
     }
   }
   return best;
+}
+
+std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& series) {
+  return choose_series(series, [](const SeriesInfo&) { return true; });
 }
 
 FolderScan scan_folder(const fs::path& root, const ScanOptions& options) {

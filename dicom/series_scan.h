@@ -9,6 +9,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,5 +76,9 @@ std::vector<SeriesInfo> group_into_series(std::vector<SliceHeader> headers,
 // The CT series with the most slices among the usable ones; ties: the thinnest spacing,
 // then the lowest series number and id (so the choice is stable).
 std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& series);
+
+// The same rule among the usable series for which `eligible` is true (batch filters).
+std::optional<std::size_t> choose_series(const std::vector<SeriesInfo>& series,
+                                         const std::function<bool(const SeriesInfo&)>& eligible);
 
 }  // namespace typemerge::dicom

@@ -12,6 +12,7 @@ packages=(
   libcli11-dev            # command line
   nlohmann-json3-dev      # reports and `info --json`
   libtbb-dev              # parallel slabs and decoding
+  libxxhash-dev           # batch: content keys of input studies
   libgtest-dev libgmock-dev libbenchmark-dev
   dcm2niix                # independent reference for the loader tests
   clang libclang-rt-14-dev  # fuzz/: Clang 14 and its libFuzzer + sanitizer runtimes

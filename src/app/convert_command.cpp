@@ -36,36 +36,6 @@ double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
-  std::vector<SurfaceSpec> specs;
-  for (const std::string& name : options.presets) {
-    const auto preset = find_preset(name);
-    if (!preset) {
-      throw CommandError{kExitUsage, "unknown preset '" + name + "' (see `typemerge presets`)"};
-    }
-    SurfaceSpec spec{preset->name, "preset " + preset->name, preset->lo, std::nullopt, true,
-                     preset->min_component_mm3, preset->fill_cavities, preset->keep_largest};
-    if (std::isfinite(preset->hi)) spec.hi = preset->hi;
-    specs.push_back(spec);
-  }
-  if (options.iso) {
-    char label[64];
-    std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
-    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false});
-  }
-  if (options.window.size() == 2) {
-    if (!(options.window[0] <= options.window[1])) {
-      throw CommandError{kExitUsage, "--window LO,HI needs LO <= HI"};
-    }
-    specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false,
-                     false});
-  }
-  if (specs.empty()) {
-    throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};
-  }
-  return specs;
-}
-
 // A preset assumes Hounsfield units and a tissue that is there: check both rather than write
 // an empty mesh or a box (everything inside).
 void check_tissue(const core::Volume& volume, float min_hu, float max_hu, const SurfaceSpec& spec) {
@@ -136,11 +106,54 @@ void to_output_space(core::TriangleMesh& mesh, const ConvertOptions& options) {
 
 }  // namespace
 
+std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
+  std::vector<SurfaceSpec> specs;
+  for (const std::string& name : options.presets) {
+    const auto preset = find_preset(name);
+    if (!preset) {
+      throw CommandError{kExitUsage, "unknown preset '" + name + "' (see `typemerge presets`)"};
+    }
+    SurfaceSpec spec{preset->name, "preset " + preset->name, preset->lo, std::nullopt, true,
+                     preset->min_component_mm3, preset->fill_cavities, preset->keep_largest};
+    if (std::isfinite(preset->hi)) spec.hi = preset->hi;
+    specs.push_back(spec);
+  }
+  if (options.iso) {
+    char label[64];
+    std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
+    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false});
+  }
+  if (options.window.size() == 2) {
+    if (!(options.window[0] <= options.window[1])) {
+      throw CommandError{kExitUsage, "--window LO,HI needs LO <= HI"};
+    }
+    specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false,
+                     false});
+  }
+  if (specs.empty()) {
+    throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};
+  }
+  return specs;
+}
+
 void add_convert_command(CLI::App& app, ConvertOptions& options) {
   CLI::App* command = app.add_subcommand(
       "convert", "Extract tissue surfaces as binary STL in patient LPS mm");
   add_input_options(*command, options.input);
   command->add_option("--series", options.series_id, "Series id from `typemerge info`");
+  command->add_option("-o,--output", options.output,
+                      "Output .stl file (one surface) or folder (several presets)")
+      ->required();
+  command->add_option("--threads", options.threads,
+                      "Extraction threads (default 0: all cores); outputs are identical for any "
+                      "value")
+      ->check(CLI::Range(0u, 256u));
+  command->add_option("--report", options.report, "Write a JSON report of the run");
+  add_surface_options(*command->add_option_group("Surface"), options);
+}
+
+void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
+  CLI::App* command = &command_group;
   auto* preset = command->add_option("--preset", options.presets,
                                      "Tissue preset(s), comma-separated (see `typemerge presets`)")
                      ->delimiter(',');
@@ -151,9 +164,6 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
                      ->expected(2);
   preset->excludes(iso)->excludes(window);
   iso->excludes(window);
-  command->add_option("-o,--output", options.output,
-                      "Output .stl file (one surface) or folder (several presets)")
-      ->required();
   command->add_option("--algorithm", options.algorithm,
                       "tm: type merging (default); mc: consistent marching cubes; classic: "
                       "fixed-table marching cubes (shows the holes of ambiguous cubes)")
@@ -197,16 +207,11 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
       ->excludes(remove_table);
   command->add_flag("--preview", options.preview, "Also write a shaded PNG beside each STL");
   command->add_flag("--ascii", options.ascii_stl, "ASCII STL instead of binary");
-  command->add_option("--threads", options.threads,
-                      "Extraction threads (default 0: all cores); outputs are identical for any "
-                      "value")
-      ->check(CLI::Range(0u, 256u));
   command->add_option("--space", options.space,
                       "Coordinates of the output: lps (DICOM, 3D Slicer's STL default) or ras")
       ->check(CLI::IsMember({"lps", "ras"}));
   command->add_flag("--center", options.center,
                     "Move the surface so its bounding box is centred on 0 (for printing)");
-  command->add_option("--report", options.report, "Write a JSON report of the run");
   command->add_flag("--show-descriptions", options.show_descriptions,
                     "Put the series' SeriesDescription in the report (free text that can "
                     "identify the patient; left out by default)");

@@ -42,6 +42,12 @@ struct ConvertOptions {
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);
+// What to extract and how (presets, algorithm, preprocessing, finishing, output format): the
+// options `batch` shares with `convert` and passes on to it.
+void add_surface_options(CLI::App& command, ConvertOptions& options);
+// The surfaces the options ask for; throws CommandError (usage) when they ask for none or for an
+// unknown preset.
+std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options);
 int run_convert(const ConvertOptions& options, std::ostream& log);
 
 }  // namespace typemerge::app

@@ -16,9 +16,9 @@ dicom::ScanOptions InputOptions::scan_options() const {
   return options;
 }
 
-void add_input_options(CLI::App& command, InputOptions& options) {
+void add_input_options(CLI::App& command, InputOptions& options, bool required) {
   command.add_option("DIR", options.input, "DICOM folder (searched recursively) or file")
-      ->required();
+      ->required(required);
   command.add_flag("--resample-spacing", options.resample_spacing,
                    "Accept series with missing slices or uneven spacing by resampling them "
                    "linearly at their smallest slice step (recorded as a warning)");

@@ -22,7 +22,8 @@ struct InputOptions {
   dicom::ScanOptions scan_options() const;
 };
 
-void add_input_options(CLI::App& command, InputOptions& options);
+// `required`: whether DIR must be given (batch --merge-summaries needs none).
+void add_input_options(CLI::App& command, InputOptions& options, bool required = true);
 
 // The folder scanned, the series chosen and its volume loaded; what volume and convert share.
 struct LoadedInput {

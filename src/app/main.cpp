@@ -3,6 +3,7 @@
 
 #include <iostream>
 
+#include "app/batch_command.h"
 #include "app/convert_command.h"
 #include "app/exit_codes.h"
 #include "app/info_command.h"
@@ -20,9 +21,11 @@ int main(int argc, char** argv) {
   VolumeOptions volume;
   ConvertOptions convert;
   StatsOptions stats;
+  BatchOptions batch;
   add_info_command(app, info);
   add_volume_command(app, volume);
   add_convert_command(app, convert);
+  add_batch_command(app, batch);
   add_stats_command(app, stats);
   add_presets_command(app);
 
@@ -41,6 +44,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("info")) return run_info(info, std::cout);
     if (app.got_subcommand("volume")) return run_volume(volume, std::cerr);
     if (app.got_subcommand("convert")) return run_convert(convert, std::cerr);
+    if (app.got_subcommand("batch")) return run_batch(batch, std::cerr);
     if (app.got_subcommand("stats")) return run_stats(stats, std::cout);
     if (app.got_subcommand("presets")) return run_presets(std::cout);
   } catch (const CommandError& error) {

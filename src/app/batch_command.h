@@ -1,0 +1,45 @@
+// `typemerge batch ROOT --preset bone[,skin…] --out OUTDIR`: every study under ROOT converted
+// with the options of `convert`, each in a child process of its own (a crash, a hang or a
+// memory limit ends that study only), several at once within a memory budget, resumable
+// (a manifest keyed by input content, tool version and parameters), shardable across the jobs
+// of a cluster scheduler, with a summary and an optional JSON-lines event log.
+#pragma once
+
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "app/batch_plan.h"
+#include "app/convert_command.h"
+
+namespace typemerge::app {
+
+struct BatchOptions {
+  InputOptions input;      // ROOT and how it is searched
+  ConvertOptions convert;  // the surface options, checked here and passed on to `convert`
+  std::vector<std::string> surface_arguments;  // those options as given, to pass on
+  std::string out;
+  std::string name_pattern = kDefaultNamePattern;
+  SeriesFilter filter;
+  unsigned jobs = 1;
+  unsigned threads = 0;      // per study; 0: cores / jobs
+  std::string max_memory;    // e.g. "8G"; default three quarters of the physical memory
+  double timeout_seconds = 3600;  // per study; 0: none
+  std::string log;           // JSON lines, appended
+  std::string shard;         // "K/N"
+  bool merge_summaries = false;
+};
+
+// Exit codes of `batch` (README "Exit codes"): 0 every study converted or up to date,
+// 5 some failed, 6 none converted, 2 bad arguments, 3 output folder unusable, 130 interrupted.
+inline constexpr int kExitBatchSomeFailed = 5;
+inline constexpr int kExitBatchNoneConverted = 6;
+inline constexpr int kExitInterrupted = 130;
+
+void add_batch_command(CLI::App& app, BatchOptions& options);
+int run_batch(const BatchOptions& options, std::ostream& log);
+
+// "512M", "8G", "1.5T" (powers of 1024) or plain bytes; throws std::invalid_argument.
+std::uint64_t parse_memory_size(const std::string& text);
+
+}  // namespace typemerge::app

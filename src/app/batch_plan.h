@@ -1,0 +1,65 @@
+// plan_studies: from one scan of a study tree to the list of studies a batch converts.
+//
+// A study is every series sharing a StudyInstanceUID, wherever its files lie under the root.
+// Per study one series is chosen by the rule of `typemerge info` (a usable CT volume, not a
+// localizer; most slices, then the thinnest step), restricted by an optional filter. Each study
+// gets an output name from a pattern; names are sanitised so they can never leave the output
+// folder, never start with '.', never collide with each other, and never carry a folder name
+// that spells the patient's name or ID.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "dicom/series_scan.h"
+
+namespace typemerge::app {
+
+// Restricts the series a study may be meshed from. Empty members do not restrict.
+struct SeriesFilter {
+  std::string description_regex;  // searched case-insensitively in SeriesDescription
+  std::string kernel_regex;       // searched case-insensitively in ConvolutionKernel
+  std::optional<double> min_thickness_mm;  // SliceThickness, else the slice step
+  std::optional<double> max_thickness_mm;
+
+  bool empty() const;
+  // Throws std::invalid_argument for a malformed regular expression.
+  bool accepts(const dicom::SeriesInfo& series) const;
+};
+
+struct StudyPlan {
+  std::string study_id;           // 12 hex digits of a hash of the StudyInstanceUID
+  std::filesystem::path folder;   // relative to the root: the deepest folder holding all its files
+  std::string shown_folder;       // `folder` for outputs: components spelling patient data masked
+  std::vector<std::filesystem::path> files;  // every file of the study (all series), sorted
+  std::string series_id;          // the chosen series; empty when none could be chosen
+  std::string refusal;            // why none was chosen
+  std::uint64_t voxels = 0;       // of the chosen series' volume
+  std::string output_name;        // relative folder under the output root ('/'-separated)
+};
+
+// Placeholders of an output-name pattern: {folder} (the study's relative folder), {study}
+// (study_id), {series} (chosen series id).
+inline constexpr const char* kDefaultNamePattern = "{folder}";
+
+// `identifying` holds, per study id, values that identify the patient (name parts, IDs); a
+// folder component containing one of them is replaced by "study-<id>".
+std::vector<StudyPlan> plan_studies(
+    const dicom::FolderScan& scan, const SeriesFilter& filter, const std::string& name_pattern,
+    const std::vector<std::pair<std::string, std::vector<std::string>>>& identifying = {});
+
+// The study id of a StudyInstanceUID (stable, non-identifying).
+std::string study_id_of(const std::string& study_uid);
+
+// One path component made safe: characters outside [A-Za-z0-9._+-] become '_', a leading '.'
+// becomes '_', "." and ".." and "" become "_", at most 96 characters.
+std::string sanitise_component(const std::string& component);
+
+// Deterministic share of studies for shard k of n (1-based): by the study id, so a study keeps
+// its shard when others are added or removed.
+bool in_shard(const std::string& study_id, int k, int n);
+
+}  // namespace typemerge::app

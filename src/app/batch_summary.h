@@ -1,0 +1,55 @@
+// The batch summary: OUTDIR/summary.json and summary.csv (or summary.shard-K-of-N.* for one
+// shard), one entry per study, and the step that joins the shards' summaries into one.
+// Entries carry no patient data: the input folder is shown masked (see batch_plan.h), series and
+// studies by their hashed ids.
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace typemerge::app {
+
+struct SurfaceOutcome {
+  std::string surface;  // preset name, "iso" or "window"
+  std::string file;     // relative to OUTDIR
+  std::uint64_t triangles = 0;
+  double volume_ml = 0;
+  bool closed_manifold = false;
+};
+
+enum class StudyStatus { converted, up_to_date, failed, interrupted };
+const char* status_name(StudyStatus status);
+
+struct StudyOutcome {
+  std::string input;        // masked relative input folder
+  std::string study;        // study id
+  std::string series;       // chosen series id (may be empty)
+  std::string output_name;  // folder under OUTDIR
+  StudyStatus status = StudyStatus::failed;
+  std::string reason;       // why it failed
+  std::vector<SurfaceOutcome> surfaces;
+  double seconds = 0;       // wall time of the conversion (0 when not run now)
+  double cpu_seconds = 0;
+  double peak_memory_mb = 0;
+};
+
+std::string outcome_json(const StudyOutcome& outcome);  // one JSON object
+StudyOutcome outcome_from_json(const std::string& json);  // throws std::runtime_error
+
+struct BatchTotals {
+  std::size_t converted = 0, up_to_date = 0, failed = 0, interrupted = 0;
+};
+BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes);
+
+// Writes `<stem>.json` and `<stem>.csv` in `out_root` atomically; outcomes sorted by output
+// name. `shard` is "" or "K/N". Throws std::runtime_error when they cannot be written.
+void write_summary(const std::filesystem::path& out_root, const std::string& stem,
+                   std::vector<StudyOutcome> outcomes, const std::string& shard);
+
+// Reads every summary.shard-K-of-N.json in `out_root`, checks that shards 1..N are all there
+// and agree on N, and writes summary.json/.csv of their union. Returns the joined outcomes.
+// Throws std::runtime_error naming what is missing or inconsistent.
+std::vector<StudyOutcome> merge_shard_summaries(const std::filesystem::path& out_root);
+
+}  // namespace typemerge::app
