@@ -1,0 +1,314 @@
+// `typemerge batch` as a user runs it, on a generated study tree (see study_tree.h): the right
+// series, valid outputs, a correct summary, documented exit codes, resume after a kill, reruns,
+// shards and job counts that change nothing in the outputs.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstring>
+#include <map>
+#include <thread>
+
+#include "app/cli_runner.h"
+#include "app/study_tree.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using typemerge::test::fresh_dir;
+using typemerge::test::read_file_bytes;
+using typemerge::test::run_cli;
+
+const fs::path& tree() {
+  static const fs::path root = [] {
+    const fs::path dir = fresh_dir("batch_tree");
+    typemerge::test::write_study_tree(dir);
+    return dir;
+  }();
+  return root;
+}
+
+// Every file under `out` except the summaries and the manifest, with its bytes.
+std::map<std::string, std::string> outputs_of(const fs::path& out) {
+  std::map<std::string, std::string> files;
+  for (const auto& entry : fs::recursive_directory_iterator(out)) {
+    const std::string relative = entry.path().lexically_relative(out).generic_string();
+    if (!entry.is_regular_file() || relative.rfind(".typemerge", 0) == 0 ||
+        relative.rfind("summary", 0) == 0) {
+      continue;
+    }
+    files[relative] = read_file_bytes(entry.path());
+  }
+  return files;
+}
+
+json summary_of(const fs::path& file) { return json::parse(read_file_bytes(file)); }
+
+// The summary's results without what differs between runs (timings, memory).
+json comparable(json results) {
+  for (auto& r : results) {
+    r.erase("seconds");
+    r.erase("cpu_seconds");
+    r.erase("peak_memory_mb");
+    if (r["status"] == "up_to_date") r["status"] = "converted";
+  }
+  return results;
+}
+
+const json* result_for(const json& summary, const std::string& input_prefix) {
+  for (const auto& r : summary["results"]) {
+    if (r["input"].get<std::string>().rfind(input_prefix, 0) == 0) return &r;
+  }
+  return nullptr;
+}
+
+std::string batch(const fs::path& out, const std::string& extra = "") {
+  return "batch " + tree().string() + " --preset bone --out " + out.string() + " " + extra;
+}
+
+TEST(Batch, ConvertsTheTreeChoosesSeriesAndReportsFailures) {
+  const fs::path out = fresh_dir("batch_first") / "out";
+  const auto run = run_cli(batch(out, "--log " + (out.parent_path() / "events.jsonl").string()));
+  EXPECT_EQ(run.exit_code, 5) << run.err;  // some failed
+  const json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["studies"], 5);
+  EXPECT_EQ(summary["converted"], 3);
+  EXPECT_EQ(summary["failed"], 2);
+
+  // The chosen series are those `info` names for the documented rule.
+  const auto info_a = json::parse(run_cli("info --json " + (tree() / "siteA/p01/studyA").string()).out);
+  const auto info_b = json::parse(run_cli("info --json " + (tree() / "siteA/p02/studyB").string()).out);
+  const json* a = result_for(summary, "siteA/p01/studyA");
+  const json* b = result_for(summary, "siteA/p02/studyB");
+  ASSERT_TRUE(a && b);
+  EXPECT_EQ((*a)["series"], info_a["default_series"]);
+  EXPECT_EQ((*b)["series"], info_b["default_series"]);
+  for (const auto& s : info_a["series"]) {
+    if (s["id"] == (*a)["series"]) EXPECT_EQ(s["slices"], 14);  // the thin one, not the scout
+  }
+  for (const auto& s : info_b["series"]) {
+    if (s["id"] == (*b)["series"]) EXPECT_EQ(s["kernel"], "SHARP");  // thinner of equals
+  }
+
+  // Outputs: binary STLs whose size matches their triangle count, closed and manifold.
+  for (const auto& r : summary["results"]) {
+    if (r["status"] != "converted") continue;
+    ASSERT_EQ(r["surfaces"].size(), 1u);
+    const auto& surface = r["surfaces"][0];
+    const fs::path stl = out / surface["file"].get<std::string>();
+    EXPECT_EQ(fs::file_size(stl), 84 + 50 * surface["triangles"].get<std::uint64_t>());
+    EXPECT_TRUE(surface["closed_manifold"].get<bool>());
+    const auto stats = run_cli("stats " + stl.string());
+    EXPECT_EQ(stats.exit_code, 0);
+    EXPECT_NE(stats.out.find("closed_manifold: true"), std::string::npos) << stats.out;
+  }
+  // Failures carry their reason; the patient's name in a folder is masked.
+  const json* c = result_for(summary, "siteB/study-");
+  ASSERT_TRUE(c);
+  EXPECT_EQ((*c)["status"], "failed");
+  EXPECT_NE((*c)["reason"].get<std::string>().find("Hounsfield"), std::string::npos);
+  const json* d = result_for(summary, "siteB/studyD");
+  ASSERT_TRUE(d);
+  EXPECT_NE((*d)["reason"].get<std::string>().find("missing slice"), std::string::npos);
+  EXPECT_FALSE(fs::exists(out / "siteB" / "studyD"));
+  // The CSV has a header and one row per study.
+  const std::string csv = read_file_bytes(out / "summary.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6);
+  // One event line per study end, plus start and end of the batch.
+  const std::string events = read_file_bytes(out.parent_path() / "events.jsonl");
+  int ends = 0;
+  std::size_t at = 0;
+  while ((at = events.find("\"study_end\"", at)) != std::string::npos) ++ends, ++at;
+  EXPECT_EQ(ends, 5);
+  EXPECT_NE(events.find("\"batch_end\""), std::string::npos);
+  // Nothing left behind: no work folders, no temporaries.
+  for (const auto& entry : fs::recursive_directory_iterator(out)) {
+    EXPECT_EQ(entry.path().string().find(".partial"), std::string::npos) << entry.path();
+  }
+  EXPECT_TRUE(fs::is_empty(out / ".typemerge" / "work"));
+  // No patient data anywhere: names, IDs (the tree writes Doe^John, PID0042).
+  for (const auto& entry : fs::recursive_directory_iterator(out)) {
+    const std::string text = entry.is_regular_file() ? read_file_bytes(entry.path()) : "";
+    for (const char* token : {"Doe", "DOE", "John", "JOHN", "PID0042"}) {
+      EXPECT_EQ(entry.path().string().find(token), std::string::npos) << entry.path();
+      EXPECT_EQ(text.find(token), std::string::npos) << entry.path() << " holds " << token;
+    }
+  }
+  for (const char* token : {"DOE", "PID0042"}) {
+    EXPECT_EQ(run.err.find(token), std::string::npos) << run.err;
+  }
+}
+
+TEST(Batch, RerunSkipsWhatIsDoneAndRedoesAChangedStudy) {
+  const fs::path work = fresh_dir("batch_rerun");
+  const fs::path root = work / "root";
+  fs::copy(tree(), root, fs::copy_options::recursive);
+  const fs::path out = work / "out";
+  const std::string command = "batch " + root.string() + " --preset bone --out " + out.string();
+  ASSERT_EQ(run_cli(command).exit_code, 5);
+  const auto first = outputs_of(out);
+  const auto bone_e = out / "siteC/studyE/s1/bone.stl";
+  const auto time_e = fs::last_write_time(bone_e);
+
+  const auto rerun = run_cli(command);
+  EXPECT_EQ(rerun.exit_code, 5) << rerun.err;  // the two failures are tried again
+  json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["up_to_date"], 3);
+  EXPECT_EQ(summary["converted"], 0);
+  EXPECT_EQ(fs::last_write_time(bone_e), time_e);
+  EXPECT_EQ(outputs_of(out), first);
+
+  // Study E changes (a bigger ball): only it is converted again.
+  typemerge::test::write_test_series(root / "siteC/studyE/s1", "E",
+                                     {"e1", "plain", "STANDARD", 10, 1.5, 8.0});
+  ASSERT_EQ(run_cli(command).exit_code, 5);
+  summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["converted"], 1);
+  EXPECT_EQ(summary["up_to_date"], 2);
+  EXPECT_EQ((*result_for(summary, "siteC/studyE"))["status"], "converted");
+  EXPECT_NE(read_file_bytes(bone_e), first.at("siteC/studyE/s1/bone.stl"));
+
+  // Other parameters are other outputs: everything is converted again, old outputs go.
+  ASSERT_EQ(run_cli("batch " + root.string() + " --preset skin --out " + out.string()).exit_code, 5);
+  summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["converted"], 3);
+  EXPECT_FALSE(fs::exists(bone_e));
+  EXPECT_TRUE(fs::exists(out / "siteC/studyE/s1/skin.stl"));
+}
+
+TEST(Batch, JobsAndShardsGiveTheSameOutputsAsOneSerialRun) {
+  const fs::path work = fresh_dir("batch_jobs");
+  ASSERT_EQ(run_cli(batch(work / "serial", "--jobs 1 --threads 1")).exit_code, 5);
+  ASSERT_EQ(run_cli(batch(work / "parallel", "--jobs 2")).exit_code, 5);
+  const auto serial = outputs_of(work / "serial");
+  EXPECT_EQ(serial.size(), 3u);
+  EXPECT_EQ(outputs_of(work / "parallel"), serial);
+
+  const fs::path sharded = work / "sharded";
+  std::size_t studies = 0;
+  for (int k = 1; k <= 3; ++k) {
+    const auto run = run_cli(batch(sharded, "--shard " + std::to_string(k) + "/3"));
+    EXPECT_TRUE(run.exit_code == 0 || run.exit_code == 5 || run.exit_code == 6) << run.err;
+    studies += summary_of(sharded / ("summary.shard-" + std::to_string(k) + "-of-3.json"))["studies"]
+                   .get<std::size_t>();
+  }
+  EXPECT_EQ(studies, 5u);
+  EXPECT_FALSE(fs::exists(sharded / "summary.json"));
+  EXPECT_EQ(run_cli("batch --merge-summaries --out " + sharded.string()).exit_code, 5);
+  EXPECT_EQ(outputs_of(sharded), serial);
+  EXPECT_EQ(comparable(summary_of(sharded / "summary.json")["results"]),
+            comparable(summary_of(work / "serial" / "summary.json")["results"]));
+}
+
+// Starts a batch in the background; returns its pid.
+pid_t start_batch(const std::string& arguments, const fs::path& log) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const std::string command = std::string("exec ") + TYPEMERGE_EXE + " " + arguments + " 2>" +
+                                log.string();
+    ::execl("/bin/sh", "sh", "-c", command.c_str(), static_cast<char*>(nullptr));
+    ::_exit(127);
+  }
+  return pid;
+}
+
+std::size_t records_in(const fs::path& out) {
+  std::error_code error;
+  std::size_t n = 0;
+  for (const auto& entry : fs::directory_iterator(out / ".typemerge" / "studies", error)) {
+    n += entry.path().extension() == ".json";
+  }
+  return n;
+}
+
+TEST(Batch, AKilledRunResumesToTheSameOutputsAsAnUninterruptedOne) {
+  const fs::path work = fresh_dir("batch_kill");
+  ASSERT_EQ(run_cli(batch(work / "whole", "--threads 1")).exit_code, 5);
+  const auto whole = outputs_of(work / "whole");
+
+  const fs::path out = work / "killed";
+  const pid_t pid = start_batch(batch(out, "--threads 1"), work / "killed.log");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (records_in(out) < 1 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::kill(pid, SIGKILL);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  const std::size_t done_before = records_in(out);
+  EXPECT_GE(done_before, 1u);
+  EXPECT_LT(done_before, 3u) << "the batch finished before it could be killed";
+  // Every output present is whole (its size matches the STL's triangle count).
+  for (const auto& [name, bytes] : outputs_of(out)) {
+    ASSERT_GE(bytes.size(), 84u) << name;
+    std::uint32_t triangles = 0;
+    std::memcpy(&triangles, bytes.data() + 80, 4);
+    EXPECT_EQ(bytes.size(), 84u + 50u * triangles) << name;
+  }
+  // The child dies with its parent (no orphan keeps writing); give the kernel a moment.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const auto resumed = run_cli(batch(out, "--threads 1"));
+  EXPECT_EQ(resumed.exit_code, 5) << resumed.err;
+  const json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["up_to_date"].get<std::size_t>(), done_before);
+  EXPECT_EQ(outputs_of(out), whole);
+  EXPECT_TRUE(fs::is_empty(out / ".typemerge" / "work"));  // the dead run's work is cleaned up
+}
+
+TEST(Batch, InterruptStopsCleanlyAndSaysSo) {
+  const fs::path work = fresh_dir("batch_interrupt");
+  const fs::path out = work / "out";
+  const pid_t pid = start_batch(batch(out, "--threads 1"), work / "log");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (records_in(out) < 1 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  const json summary = summary_of(out / "summary.json");
+  if (summary["interrupted"].get<int>() == 0) GTEST_SKIP() << "the batch ended before the signal";
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_TRUE(fs::is_empty(out / ".typemerge" / "work"));
+  EXPECT_NE(read_file_bytes(work / "log").find("interrupted"), std::string::npos);
+}
+
+TEST(Batch, TimeAndMemoryLimitsFailTheStudyNotTheBatch) {
+  const fs::path work = fresh_dir("batch_limits");
+  auto run = run_cli(batch(work / "slow", "--timeout 0.001"));
+  EXPECT_EQ(run.exit_code, 6) << run.err;  // none converted
+  json summary = summary_of(work / "slow" / "summary.json");
+  EXPECT_EQ(summary["failed"], 5);
+  EXPECT_NE((*result_for(summary, "siteC/studyE"))["reason"].get<std::string>().find("time limit"),
+            std::string::npos);
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "the memory limit is not applied under AddressSanitizer";
+#else
+  run = run_cli(batch(work / "small", "--max-memory 40M"));
+  EXPECT_EQ(run.exit_code, 6) << run.err;
+  summary = summary_of(work / "small" / "summary.json");
+  EXPECT_EQ(summary["converted"], 0);
+  EXPECT_FALSE((*result_for(summary, "siteC/studyE"))["reason"].get<std::string>().empty());
+#endif
+}
+
+TEST(Batch, BadArgumentsExitWithTwo) {
+  const fs::path out = fresh_dir("batch_args");
+  EXPECT_EQ(run_cli(batch(out, "--shard 4/3")).exit_code, 2);
+  EXPECT_EQ(run_cli(batch(out, "--series-description '(['")).exit_code, 2);
+  EXPECT_EQ(run_cli(batch(out, "--max-memory lots")).exit_code, 2);
+  EXPECT_EQ(run_cli("batch " + tree().string() + " --preset marrow --out " + out.string()).exit_code, 2);
+  EXPECT_EQ(run_cli("batch " + (out / "nowhere").string() + " --preset bone --out " +
+                    (out / "o").string()).exit_code, 2);
+  EXPECT_EQ(run_cli("batch --preset bone --out " + out.string()).exit_code, 2);
+  EXPECT_FALSE(fs::exists(out / "summary.json"));
+}
+
+}  // namespace
