@@ -23,6 +23,7 @@
 #include "app/batch_summary.h"
 #include "app/child_process.h"
 #include "app/exit_codes.h"
+#include "app/memory_budget.h"
 #include "dicom/patient_identifiers.h"
 
 namespace typemerge::app {
@@ -57,25 +58,6 @@ class InterruptGuard {
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// Peak memory of converting a study, from its voxel count: measured 515 MB peak RSS for the
-// abdomen (35 M voxels, bone and skin, `/usr/bin/time -v typemerge convert`), i.e. about
-// 14 bytes a voxel (the HU volume, its table-removed copy and masks, the meshes) plus the
-// process itself; 16 bytes a voxel and 64 MiB leave a margin.
-std::uint64_t memory_estimate(std::uint64_t voxels) { return voxels * 16 + (64ull << 20); }
-
-std::uint64_t default_memory_budget() {
-  const long pages = ::sysconf(_SC_PHYS_PAGES);
-  const long page = ::sysconf(_SC_PAGESIZE);
-  if (pages <= 0 || page <= 0) return 4ull << 30;
-  return std::uint64_t(pages) * std::uint64_t(page) / 4 * 3;
-}
-
-std::string megabytes(std::uint64_t bytes) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.0f MiB", double(bytes) / (1 << 20));
-  return text;
 }
 
 // The surface options exactly as given, as `--name=value` arguments for `convert`: flags once,
@@ -332,7 +314,8 @@ std::vector<std::string> BatchRun::child_arguments(const StudyPlan& plan, const 
   for (const std::string& a : options_.surface_arguments) argv.push_back(a);
   for (const std::string& a : {std::string("-o"), (work / "out").string(), std::string("--report"),
                                (work / "report.json").string(), std::string("--threads"),
-                               std::to_string(threads_per_study_)}) {
+                               std::to_string(threads_per_study_),
+                               "--max-memory=" + std::to_string(budget_)}) {
     argv.push_back(a);
   }
   return argv;
@@ -473,7 +456,7 @@ int BatchRun::run() {
     // Start what the job count and the memory budget allow; one study always runs, even if
     // its estimate alone exceeds the budget (the hard limit then decides).
     while (!queue_.empty() && running.size() < options_.jobs) {
-      const std::uint64_t estimate = memory_estimate(queue_.front().plan->voxels);
+      const std::uint64_t estimate = conversion_memory_estimate(queue_.front().plan->voxels);
       if (!running.empty() && reserved + estimate > budget_) break;
       RunningStudy r;
       r.study = std::move(queue_.front());
@@ -483,11 +466,9 @@ int BatchRun::run() {
       fs::remove_all(r.work, error);
       fs::create_directories(r.work / "out", error);
       if (error) throw CommandError{kExitOutputFailed, "cannot write in " + r.work.string()};
-      ChildSpec spec{child_arguments(*r.study.plan, r.work), r.work / "output.txt", 0};
-#if !defined(__SANITIZE_ADDRESS__)
-      // Not under AddressSanitizer, whose shadow memory is terabytes of address space.
-      spec.address_space_limit = budget_;
-#endif
+      // The child limits itself (--max-memory): it refuses a series whose estimate exceeds
+      // the budget before loading it, and its address space is bounded.
+      ChildSpec spec{child_arguments(*r.study.plan, r.work), r.work / "output.txt"};
       r.start = Clock::now();
       r.child = std::make_unique<ChildProcess>(spec);
       events_.write("study_start", {{"study", r.study.plan->study_id},
@@ -584,7 +565,7 @@ void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
   } else if (!result.exited || result.exit_code != 0) {
     outcome.reason = child_reason(r.work / "output.txt", result);
     if (outcome.reason == "out of memory") {
-      outcome.reason += " (limit " + megabytes(budget_) + ", --max-memory)";
+      outcome.reason += " (limit " + format_megabytes(budget_) + ", --max-memory)";
     }
   } else {
     try {
@@ -634,27 +615,6 @@ void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
 }
 
 }  // namespace
-
-std::uint64_t parse_memory_size(const std::string& text) {
-  std::size_t used = 0;
-  double value = 0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    throw std::invalid_argument("not a memory size: '" + text + "' (e.g. 512M, 8G)");
-  }
-  const std::string unit = text.substr(used);
-  double scale = 1;
-  if (unit == "K" || unit == "k") scale = 1024.0;
-  else if (unit == "M" || unit == "m") scale = 1024.0 * 1024;
-  else if (unit == "G" || unit == "g") scale = 1024.0 * 1024 * 1024;
-  else if (unit == "T" || unit == "t") scale = 1024.0 * 1024 * 1024 * 1024;
-  else if (!unit.empty()) throw std::invalid_argument("not a memory size: '" + text + "' (e.g. 512M, 8G)");
-  if (!(value > 0) || !std::isfinite(value * scale) || value * scale > 1.8e19) {
-    throw std::invalid_argument("not a memory size: '" + text + "' (e.g. 512M, 8G)");
-  }
-  return static_cast<std::uint64_t>(value * scale);
-}
 
 void add_batch_command(CLI::App& app, BatchOptions& options) {
   CLI::App* command = app.add_subcommand(

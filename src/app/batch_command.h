@@ -39,7 +39,4 @@ inline constexpr int kExitInterrupted = 130;
 void add_batch_command(CLI::App& app, BatchOptions& options);
 int run_batch(const BatchOptions& options, std::ostream& log);
 
-// "512M", "8G", "1.5T" (powers of 1024) or plain bytes; throws std::invalid_argument.
-std::uint64_t parse_memory_size(const std::string& text);
-
 }  // namespace typemerge::app

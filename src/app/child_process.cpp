@@ -36,10 +36,6 @@ ChildProcess::ChildProcess(const ChildSpec& spec) {
     if (::getppid() != parent) ::_exit(127);  // the parent died before prctl
     ::setpgid(0, 0);
     ::sigprocmask(SIG_SETMASK, &all_signals, nullptr);
-    if (spec.address_space_limit > 0) {
-      const rlimit limit{spec.address_space_limit, spec.address_space_limit};
-      ::setrlimit(RLIMIT_AS, &limit);
-    }
     if (null_input >= 0) ::dup2(null_input, STDIN_FILENO);
     ::dup2(output, STDOUT_FILENO);
     ::dup2(output, STDERR_FILENO);

@@ -2,7 +2,7 @@
 // exhausted memory limit inside it (a third-party decoder, say) ends that command only.
 //
 // No shell is involved: the arguments go to execv as they are. The child gets its own process
-// group, its output in a file, an optional address-space limit, and is killed if the parent
+// group, its output in a file, and is killed if the parent
 // dies (PR_SET_PDEATHSIG), so a killed batch leaves no orphan writing into its work folders.
 #pragma once
 
@@ -19,7 +19,6 @@ namespace typemerge::app {
 struct ChildSpec {
   std::vector<std::string> argv;            // argv[0]: the executable's path
   std::filesystem::path output_file;        // stdout and stderr
-  std::uint64_t address_space_limit = 0;    // RLIMIT_AS in bytes; 0: none
 };
 
 struct ChildResult {

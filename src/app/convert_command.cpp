@@ -5,6 +5,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -13,6 +14,7 @@
 #include <ostream>
 
 #include "app/exit_codes.h"
+#include "app/memory_budget.h"
 #include "app/presets.h"
 #include "app/version.h"
 #include "core/window_field.h"
@@ -149,6 +151,10 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
                       "value")
       ->check(CLI::Range(0u, 256u));
   command->add_option("--report", options.report, "Write a JSON report of the run");
+  command->add_option("--max-memory", options.max_memory,
+                      "Memory bound, e.g. 8G: a series whose conversion would need more (16 "
+                      "bytes a voxel + 64 MiB) is refused before loading, and the process's "
+                      "address space is limited to it");
   add_surface_options(*command->add_option_group("Surface"), options);
 }
 
@@ -225,6 +231,14 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     if (interactive) log << "... " << what << "\n" << std::flush;
   };
   const std::vector<SurfaceSpec> specs = surface_specs(options);
+  std::uint64_t max_memory = 0;
+  if (!options.max_memory.empty()) {
+    try {
+      max_memory = parse_memory_size(options.max_memory);
+    } catch (const std::invalid_argument& error) {
+      throw CommandError{kExitUsage, error.what()};
+    }
+  }
   if (specs.size() > 1) {
     std::error_code error;
     fs::create_directories(options.output, error);
@@ -244,7 +258,19 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   ordered_json report = {{"tool", "typemerge"}, {"version", kVersion}};
   const auto load_start = Clock::now();
   progress("reading " + options.input.input);
-  LoadedInput input = load_input(options.input, options.series_id);
+  LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
+    const std::uint64_t voxels = std::uint64_t(s.rows) * s.columns *
+                                 std::uint64_t(std::max<std::int64_t>(s.geometry.output_slices, 0));
+    if (max_memory > 0 && conversion_memory_estimate(voxels) > max_memory) {
+      throw CommandError{kExitInputRefused,
+                         "series " + s.id + " would need about " +
+                             format_megabytes(conversion_memory_estimate(voxels)) +
+                             " to convert, more than --max-memory " + format_megabytes(max_memory)};
+    }
+    // From here on (pixels, preprocessing, meshes) the bound is hard. The scan before it reads
+    // headers only, each bounded by the per-file checks of the header reader.
+    if (max_memory > 0) limit_address_space(max_memory);
+  });
   const dicom::SeriesInfo& series = *input.series;
   dicom::LoadedSeries& loaded = input.loaded;
   const double load_ms = ms_since(load_start);

@@ -36,6 +36,7 @@ struct ConvertOptions {
   bool keep_table = false;
   bool ascii_stl = false;
   unsigned threads = 0;
+  std::string max_memory;  // e.g. "8G": refuse larger series up front, bound the address space
   std::string space = "lps";  // lps | ras
   bool center = false;
   bool show_descriptions = false;  // put the free-text SeriesDescription in the report

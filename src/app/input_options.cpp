@@ -65,10 +65,12 @@ dicom::FolderScan scan_input(const InputOptions& options) {
   }
 }
 
-LoadedInput load_input(const InputOptions& options, const std::string& series_id) {
+LoadedInput load_input(const InputOptions& options, const std::string& series_id,
+                       const std::function<void(const dicom::SeriesInfo&)>& before_load) {
   LoadedInput input;
   input.scan = scan_input(options);
   input.series = &select_series(input.scan, series_id);
+  if (before_load) before_load(*input.series);
   try {
     input.loaded = dicom::load_series(*input.series);
   } catch (const dicom::LoadError& error) {

@@ -1,6 +1,7 @@
 // Options shared by every command that reads a DICOM folder, bound once to CLI11.
 #pragma once
 
+#include <functional>
 #include <string>
 
 #include "dicom/series_loader.h"
@@ -34,7 +35,9 @@ struct LoadedInput {
 
 // Throws CommandError (input refused) with the loader's one-line reason.
 dicom::FolderScan scan_input(const InputOptions& options);
-LoadedInput load_input(const InputOptions& options, const std::string& series_id);
+// `before_load` sees the chosen series before its pixels are read (and may refuse it by throwing).
+LoadedInput load_input(const InputOptions& options, const std::string& series_id,
+                       const std::function<void(const dicom::SeriesInfo&)>& before_load = {});
 
 // Scans the folder and picks the series: `series_id` if given, else the default one.
 // Throws CommandError (input refused) with the reason when there is none to load.

@@ -11,6 +11,7 @@
 #include "app/batch_manifest.h"
 #include "app/batch_plan.h"
 #include "app/batch_summary.h"
+#include "app/memory_budget.h"
 #include "app/cli_runner.h"
 #include "app/study_tree.h"
 #include "dicom/patient_identifiers.h"

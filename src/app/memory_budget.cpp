@@ -1,0 +1,66 @@
+#include "app/memory_budget.h"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <stdexcept>
+
+namespace typemerge::app {
+
+std::uint64_t conversion_memory_estimate(std::uint64_t voxels) {
+  return voxels * 16 + (64ull << 20);
+}
+
+std::uint64_t default_memory_budget() {
+  const long pages = ::sysconf(_SC_PHYS_PAGES);
+  const long page = ::sysconf(_SC_PAGESIZE);
+  if (pages <= 0 || page <= 0) return 4ull << 30;
+  return std::uint64_t(pages) * std::uint64_t(page) / 4 * 3;
+}
+
+std::uint64_t parse_memory_size(const std::string& text) {
+  const std::string message = "not a memory size: '" + text + "' (e.g. 512M, 8G)";
+  std::size_t used = 0;
+  double value = 0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    throw std::invalid_argument(message);
+  }
+  const std::string unit = text.substr(used);
+  double scale = 1;
+  if (unit == "K" || unit == "k") {
+    scale = 1024.0;
+  } else if (unit == "M" || unit == "m") {
+    scale = 1024.0 * 1024;
+  } else if (unit == "G" || unit == "g") {
+    scale = 1024.0 * 1024 * 1024;
+  } else if (unit == "T" || unit == "t") {
+    scale = 1024.0 * 1024 * 1024 * 1024;
+  } else if (!unit.empty()) {
+    throw std::invalid_argument(message);
+  }
+  const double bytes = value * scale;
+  if (!(bytes >= 1) || !std::isfinite(bytes) || bytes > 1.8e19) throw std::invalid_argument(message);
+  return static_cast<std::uint64_t>(bytes);
+}
+
+std::string format_megabytes(std::uint64_t bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.0f MiB", double(bytes) / (1 << 20));
+  return text;
+}
+
+bool limit_address_space(std::uint64_t bytes) {
+#if defined(__SANITIZE_ADDRESS__)
+  (void)bytes;
+  return false;
+#else
+  const rlimit limit{bytes, bytes};
+  return ::setrlimit(RLIMIT_AS, &limit) == 0;
+#endif
+}
+
+}  // namespace typemerge::app
