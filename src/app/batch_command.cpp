@@ -428,7 +428,8 @@ int BatchRun::run() {
   progress_ = std::make_unique<BatchProgress>(log_, queue_.size(), voxels_to_do);
   std::size_t skipped = 0, refused = 0;
   for (const StudyOutcome& o : outcomes_) (o.status == StudyStatus::up_to_date ? skipped : refused)++;
-  log_ << "batch: " << plans.size() << " studies under " << root_.string()
+  // ROOT itself is not repeated: archive folder names can spell patient names.
+  log_ << "batch: " << plans.size() << " studies found"
        << (shard_.active() ? ", shard " + shard_.text : std::string()) << "; " << queue_.size()
        << " to convert, " << skipped << " up to date, " << refused << " without a usable series\n"
        << std::flush;

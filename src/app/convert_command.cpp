@@ -152,9 +152,9 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
       ->check(CLI::Range(0u, 256u));
   command->add_option("--report", options.report, "Write a JSON report of the run");
   command->add_option("--max-memory", options.max_memory,
-                      "Memory bound, e.g. 8G: a series whose conversion would need more (16 "
-                      "bytes a voxel + 64 MiB) is refused before loading, and the process's "
-                      "address space is limited to it");
+                      "Memory bound, e.g. 8G (default: 3/4 of the physical memory): a series "
+                      "whose conversion would need more (16 bytes a voxel + 64 MiB) is refused "
+                      "before loading, and the process's address space is limited to it");
   add_surface_options(*command->add_option_group("Surface"), options);
 }
 
@@ -231,7 +231,9 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     if (interactive) log << "... " << what << "\n" << std::flush;
   };
   const std::vector<SurfaceSpec> specs = surface_specs(options);
-  std::uint64_t max_memory = 0;
+  // A stated bound on every run, not only when asked: three quarters of the physical memory
+  // by default.
+  std::uint64_t max_memory = default_memory_budget();
   if (!options.max_memory.empty()) {
     try {
       max_memory = parse_memory_size(options.max_memory);

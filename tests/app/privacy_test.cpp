@@ -157,6 +157,9 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
   const fs::path study = write_canary_study();
   const fs::path out = fresh_dir("privacy_out");
   const std::string in = study.string();
+  // The batch input: the study in a folder named by the patient's ID, as archive exports do.
+  const fs::path batch_root = fresh_dir("privacy_batch_root");
+  fs::copy(study, batch_root / ("site_" + token("PatientID")), fs::copy_options::recursive);
   const std::vector<std::string> commands = {
       "info " + in,
       "info --json " + in,
@@ -168,6 +171,8 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
       "convert " + in + " --iso 300 --ascii -o " + (out / "ascii.stl").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.ply").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.obj").string(),
+      "batch " + batch_root.string() + " --preset bone,skin --preview --out " +
+          (out / "batch").string() + " --log " + (out / "batch.jsonl").string(),
       "stats " + (out / "surfaces" / "bone.stl").string(),
       "stats --json " + (out / "surfaces" / "skin.stl").string(),
   };
@@ -186,8 +191,9 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
     ++files;
     for (auto& l : leaks(read_file_bytes(entry.path()), name)) found.push_back(l);
   }
-  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, PLY, OBJ.
-  EXPECT_EQ(files, 10u);
+  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, PLY, OBJ; batch: bone and skin STL
+  // + PNG, summary JSON + CSV, the study's manifest record, the event log.
+  EXPECT_EQ(files, 18u);
   for (const std::string& l : found) ADD_FAILURE() << "leak: " << l;
 }
 
