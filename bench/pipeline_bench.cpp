@@ -1,0 +1,593 @@
+// pipeline_bench: the whole `typemerge convert` pipeline, stage by stage, with time, CPU time,
+// throughput, triangles and peak memory of each stage.
+//
+//   pipeline_bench (--series DIR | --synthetic NXxNYxNZ) [--repeat-z K]
+//                  [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]
+//                  [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]
+//
+// Stages, in the order `convert` runs them (src/app/convert_command.cpp, surface_pipeline.cpp):
+//   load     scan the folder and decode the default series (DICOM → HU); for --synthetic the
+//            volume is generated instead; --repeat-z K then stacks K copies of the slices
+//            along z (in memory), to grow N without new data
+//   table    preprocess::remove_outside_body, as convert does whenever a preset is given
+//   mc       consistent marching cubes with the boundary-cube records type merging needs
+//            (what extract_type_merged runs; a window preset first builds its window field)
+//   tm       core::merge_types on that mesh
+//   check    convert's checks around extraction: the tissue count (count_in_window), the
+//            map to patient mm (to_patient) and core::check_mesh of the extracted surface
+//   finish   the preset's finishing as make_surface does it (keep largest / remove small
+//            components / fill cavities, each followed by check_mesh); none for --iso
+//   write    binary STL into --out-dir (atomic: the file is fsync'ed before the rename)
+// and, for --series without --repeat-z, `convert` itself run in-process (app::run_convert,
+// the CLI's code path with the same preset or iso and thread count) as the whole-pipeline row.
+//
+// Per stage it prints the median over --repeat runs of wall time and CPU time (all threads,
+// CLOCK_PROCESS_CPUTIME_ID), M cells/s for the stages that visit every cell, triangles in and
+// out, the resident memory before the stage (after malloc_trim, so memory freed by earlier
+// stages does not count), its peak during the stage (VmHWM, reset before each stage by writing
+// 5 to /proc/self/clear_refs; where that is refused the peak since the start is printed and
+// marked) and the increase, and the mesh (with mc's cube records) held after the stage. Each
+// block names the load average it started at: figures taken on a busy machine say so.
+//
+// --vtk runs bench/vtk_pipeline.py on the same input: the DICOM folder (vtkDICOMImageReader)
+// for --series, else the volume written as NRRD (to --write-nrrd or --out-dir). It needs
+// Debian's python3-vtk9 (--vtk-python, --vtk-script to override) and times VTK's read →
+// vtkFlyingEdges3D → binary vtkSTLWriter per stage on the same samples; the ratios to ours are
+// printed from that one run.
+#include <malloc.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "app/convert_command.h"
+#include "app/presets.h"
+#include "core/marching_cubes.h"
+#include "core/mesh_checks.h"
+#include "core/type_merging.h"
+#include "core/window_field.h"
+#include "dicom/series_loader.h"
+#include "io/mesh_writers.h"
+#include "io/nrrd_writer.h"
+#include "mesh/components.h"
+#include "mesh/validity.h"
+#include "preprocess/body_mask.h"
+#include "synthetic_volume.h"
+
+#ifndef TYPEMERGE_BENCH_SOURCE_DIR
+#define TYPEMERGE_BENCH_SOURCE_DIR "bench"
+#endif
+
+namespace {
+
+using namespace typemerge;
+namespace fs = std::filesystem;
+
+// ---- process figures (Linux /proc) ---------------------------------------------------------
+
+long status_kib(const char* field) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  const std::size_t length = std::char_traits<char>::length(field);
+  while (std::getline(status, line)) {
+    if (line.compare(0, length, field) == 0) return std::stol(line.substr(length));
+  }
+  return -1;
+}
+long current_rss_kib() { return status_kib("VmRSS:"); }
+long peak_rss_kib() { return status_kib("VmHWM:"); }
+
+// Resets VmHWM to the current RSS; false when the kernel refuses (then peaks are cumulative).
+bool reset_peak_rss() {
+  {
+    std::ofstream clear("/proc/self/clear_refs");
+    clear << "5";
+    clear.flush();
+    if (!clear) return false;
+  }
+  return peak_rss_kib() <= current_rss_kib() + 64;
+}
+
+// The 1-minute load average: on a shared machine, a figure taken at a load above the core
+// count (or a cpu/w below 1 for one thread) was measured while competing for the CPU.
+std::string load_average() {
+  std::ifstream file("/proc/loadavg");
+  std::string one;
+  file >> one;
+  return one.empty() ? "?" : one;
+}
+
+double cpu_seconds() {
+  timespec t{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+  return double(t.tv_sec) + double(t.tv_nsec) * 1e-9;
+}
+
+double mesh_mib(const core::TriangleMesh& mesh) {
+  return double(mesh.positions.size() * 12 + mesh.normals.size() * 12 +
+                mesh.triangles.size() * 12) /
+         double(1 << 20);
+}
+
+// ---- one stage's figures ---------------------------------------------------------------------
+
+struct StageFigures {
+  std::string name;
+  double wall_ms = 0;
+  double cpu_ms = 0;
+  double cells = 0;  // cells visited, for M cells/s; 0 = not meaningful
+  std::size_t triangles_in = 0;
+  std::size_t triangles_out = 0;
+  long rss_before_kib = 0;
+  long peak_kib = 0;
+  double mesh_mib = 0;  // the mesh (and cube records) held after the stage
+};
+
+bool g_peak_resets = true;  // whether clear_refs worked (decided once in main)
+
+// Runs `work` as one stage and returns its figures (triangles and cells are filled in by
+// the caller, which knows them).
+StageFigures measure(const std::string& name, const std::function<void()>& work) {
+  StageFigures figures;
+  figures.name = name;
+  ::malloc_trim(0);  // return what earlier stages freed, so rss0 is what is really held
+  if (g_peak_resets) reset_peak_rss();
+  figures.rss_before_kib = current_rss_kib();
+  const double cpu_start = cpu_seconds();
+  const auto start = std::chrono::steady_clock::now();
+  work();
+  figures.wall_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  figures.cpu_ms = (cpu_seconds() - cpu_start) * 1e3;
+  figures.peak_kib = peak_rss_kib();
+  return figures;
+}
+
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values.empty() ? 0 : values[values.size() / 2];
+}
+
+// Median wall and CPU time per stage over the runs; memory and counts from the run with the
+// largest peak increase (they are the same in every run up to allocator noise).
+std::vector<StageFigures> summarize(const std::vector<std::vector<StageFigures>>& runs) {
+  std::vector<StageFigures> summary = runs.front();
+  for (std::size_t s = 0; s < summary.size(); ++s) {
+    std::vector<double> wall, cpu;
+    for (const auto& run : runs) {
+      wall.push_back(run[s].wall_ms);
+      cpu.push_back(run[s].cpu_ms);
+      if (run[s].peak_kib - run[s].rss_before_kib >
+          summary[s].peak_kib - summary[s].rss_before_kib) {
+        summary[s].peak_kib = run[s].peak_kib;
+        summary[s].rss_before_kib = run[s].rss_before_kib;
+      }
+    }
+    summary[s].wall_ms = median(wall);
+    summary[s].cpu_ms = median(cpu);
+  }
+  return summary;
+}
+
+void print_header() {
+  std::printf("  %-16s %9s %9s %5s %9s %11s %11s %9s %9s %9s %9s\n", "stage", "wall ms", "cpu ms",
+              "cpu/w", "Mcells/s", "tri in", "tri out", "rss0 MiB", "peak MiB", "peak+MiB",
+              "mesh MiB");
+}
+
+void print_row(const StageFigures& f) {
+  char rate[16] = "-";
+  if (f.cells > 0) std::snprintf(rate, sizeof rate, "%.1f", f.cells / f.wall_ms / 1e3);
+  std::printf("  %-16s %9.1f %9.1f %5.2f %9s %11zu %11zu %9.1f %9.1f %9.1f %9.1f\n", f.name.c_str(),
+              f.wall_ms, f.cpu_ms, f.wall_ms > 0 ? f.cpu_ms / f.wall_ms : 0.0, rate, f.triangles_in,
+              f.triangles_out, double(f.rss_before_kib) / 1024, double(f.peak_kib) / 1024,
+              double(f.peak_kib - f.rss_before_kib) / 1024, f.mesh_mib);
+}
+
+// ---- what to extract ----------------------------------------------------------------------
+
+struct Surface {
+  std::string name;  // preset name or "iso<value>"
+  double lo = 0;
+  std::optional<double> hi;
+  bool preset = false;  // convert removes the table and finishes only for presets
+  double min_component_mm3 = 0;
+  bool fill_cavities = false;
+  bool keep_largest = false;
+};
+
+std::vector<std::string> split(const std::string& text) {
+  std::vector<std::string> parts;
+  std::stringstream stream(text);
+  std::string part;
+  while (std::getline(stream, part, ',')) parts.push_back(part);
+  return parts;
+}
+
+// ---- the input volume ---------------------------------------------------------------------
+
+struct Input {
+  std::string series_dir;
+  long nx = 0, ny = 0, nz = 0;  // synthetic size
+  int repeat_z = 1;
+};
+
+// K copies of the slices along z; the geometry keeps its slice step, so the stack is longer.
+core::Volume repeat_along_z(const core::Volume& volume, int copies) {
+  const auto& size = volume.size();
+  core::Volume stacked({size.nx, size.ny, size.nz * copies}, volume.geometry());
+  const std::size_t block = volume.samples().size();
+  for (int c = 0; c < copies; ++c) {
+    std::copy(volume.samples().begin(), volume.samples().end(),
+              stacked.samples().begin() + static_cast<std::ptrdiff_t>(block * std::size_t(c)));
+  }
+  return stacked;
+}
+
+core::Volume load_input(const Input& input) {
+  core::Volume volume;
+  if (!input.series_dir.empty()) {
+    const auto scan = dicom::scan_folder(input.series_dir, {});
+    if (!scan.default_series) throw std::runtime_error("no usable series in " + input.series_dir);
+    volume = dicom::load_series(scan.series[*scan.default_series]).volume;
+  } else {
+    volume = bench::synthetic_volume(input.nx, input.ny, input.nz);
+  }
+  if (input.repeat_z > 1) volume = repeat_along_z(volume, input.repeat_z);
+  return volume;
+}
+
+// ---- one run of every stage -----------------------------------------------------------------
+
+struct RunSettings {
+  Input input;
+  Surface surface;
+  unsigned threads = 1;
+  fs::path out_dir;
+};
+
+std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells) {
+  std::vector<StageFigures> stages;
+  const Surface& surface = settings.surface;
+
+  core::Volume volume;
+  stages.push_back(measure("load", [&] { volume = load_input(settings.input); }));
+  const auto& size = volume.size();
+  cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
+  stages.back().cells = cells;
+
+  if (surface.preset) {
+    stages.push_back(measure(
+        "table", [&] { volume = preprocess::remove_outside_body(std::move(volume)).volume; }));
+    stages.back().cells = cells;
+  }
+
+  core::ExtractOptions extract;  // convert's defaults: consistent, closed borders
+  extract.threads = settings.threads;
+  std::vector<core::BoundaryCube> cubes;
+  extract.cubes = &cubes;
+  core::TriangleMesh mesh;
+  stages.push_back(measure("mc", [&] {
+    if (surface.hi) {
+      const core::Volume field = core::window_field(volume, static_cast<float>(surface.lo),
+                                                    static_cast<float>(*surface.hi));
+      mesh = core::extract_isosurface(field, 0.0f, extract);
+    } else {
+      mesh = core::extract_isosurface(volume, static_cast<float>(surface.lo), extract);
+    }
+  }));
+  stages.back().cells = cells;
+  stages.back().triangles_out = mesh.triangles.size();
+  stages.back().mesh_mib =
+      mesh_mib(mesh) + double(cubes.size() * sizeof(core::BoundaryCube)) / double(1 << 20);
+
+  core::MergeOptions merge;  // what extract_type_merged runs
+  merge.threads = settings.threads;
+  const std::size_t mc_triangles = mesh.triangles.size();
+  stages.push_back(measure("tm", [&] {
+    core::merge_types(mesh, cubes, merge);
+    cubes = {};
+  }));
+  stages.back().cells = cells;
+  stages.back().triangles_in = mc_triangles;
+  stages.back().triangles_out = mesh.triangles.size();
+  stages.back().mesh_mib = mesh_mib(mesh);
+
+  core::MeshCheck check;
+  stages.push_back(measure("check", [&] {
+    const float hi =
+        surface.hi ? static_cast<float>(*surface.hi) : std::numeric_limits<float>::infinity();
+    if (core::count_in_window(volume, static_cast<float>(surface.lo), hi) == 0) {
+      throw std::runtime_error("no voxel inside the surface's range");
+    }
+    core::to_patient(mesh, volume.geometry());
+    check = core::check_mesh(mesh);
+  }));
+  stages.back().triangles_in = stages.back().triangles_out = mesh.triangles.size();
+  stages.back().mesh_mib = mesh_mib(mesh);
+
+  volume = {};  // convert keeps the volume to the end; here it would only blur the figures
+  if (surface.preset) {
+    const std::size_t before = mesh.triangles.size();
+    stages.push_back(measure("finish", [&] {
+      if (surface.keep_largest) {
+        mesh::keep_largest_component(mesh);
+        check = core::check_mesh(mesh);
+      } else if (surface.min_component_mm3 > 0) {
+        mesh::remove_small_components(mesh, surface.min_component_mm3);
+        check = core::check_mesh(mesh);
+      }
+      if (surface.fill_cavities && !surface.keep_largest) {
+        mesh::fill_cavities(mesh);
+        check = core::check_mesh(mesh);
+      }
+      if (!check.closed_manifold()) mesh::check_validity(mesh);
+    }));
+    stages.back().triangles_in = before;
+    stages.back().triangles_out = mesh.triangles.size();
+    stages.back().mesh_mib = mesh_mib(mesh);
+  }
+
+  const fs::path stl = settings.out_dir / ("pipeline_bench_" + surface.name + ".stl");
+  stages.push_back(measure("write", [&] {
+    io::write_mesh(mesh, stl, io::MeshFormat::binary_stl, "typemerge pipeline_bench SPACE=LPS");
+  }));
+  stages.back().triangles_in = stages.back().triangles_out = mesh.triangles.size();
+  stages.back().mesh_mib = mesh_mib(mesh);
+
+  StageFigures total;
+  total.name = "sum of stages";
+  for (const auto& s : stages) {
+    total.wall_ms += s.wall_ms;
+    total.cpu_ms += s.cpu_ms;
+    total.peak_kib = std::max(total.peak_kib, s.peak_kib);
+  }
+  total.triangles_out = mesh.triangles.size();
+  total.rss_before_kib = stages.front().rss_before_kib;
+  stages.push_back(total);
+  return stages;
+}
+
+// `typemerge convert DIR (--preset NAME | --iso HU) -o OUT --threads T`, in-process.
+StageFigures run_convert_once(const RunSettings& settings) {
+  app::ConvertOptions options;
+  options.input.input = settings.input.series_dir;
+  if (settings.surface.preset)
+    options.presets = {settings.surface.name};
+  else
+    options.iso = settings.surface.lo;
+  options.output =
+      (settings.out_dir / ("pipeline_bench_convert_" + settings.surface.name + ".stl")).string();
+  options.threads = settings.threads;
+  std::ostringstream log;
+  StageFigures figures = measure("convert", [&] { app::run_convert(options, log); });
+  figures.triangles_out = (fs::file_size(options.output) - 84) / 50;  // binary STL size
+  return figures;
+}
+
+// ---- the VTK companion --------------------------------------------------------------------
+
+// Runs bench/vtk_pipeline.py and collects its "stage NAME WALL_MS CPU_MS TRIANGLES PEAK_MIB"
+// lines (it prints its own table too, which is passed through).
+std::map<std::string, StageFigures> run_vtk(const std::string& python, const std::string& script,
+                                            const std::string& source, double iso, unsigned threads,
+                                            int repeat, const fs::path& out_dir) {
+  std::map<std::string, StageFigures> stages;
+  char command[2048];
+  std::snprintf(command, sizeof command,
+                "%s %s %s --iso %g --threads %u --repeat %d --out-dir %s --machine", python.c_str(),
+                script.c_str(), source.c_str(), iso, threads, repeat, out_dir.string().c_str());
+  FILE* pipe = ::popen(command, "r");
+  if (pipe == nullptr) return stages;
+  char line[512];
+  while (std::fgets(line, sizeof line, pipe) != nullptr) {
+    char name[64];
+    StageFigures f;
+    double peak_mib = 0;
+    if (std::sscanf(line, "stage %63s %lf %lf %zu %lf", name, &f.wall_ms, &f.cpu_ms,
+                    &f.triangles_out, &peak_mib) == 5) {
+      f.name = name;
+      f.peak_kib = static_cast<long>(peak_mib * 1024);
+      stages[name] = f;
+    } else {
+      std::printf("    vtk| %s", line);
+    }
+  }
+  if (::pclose(pipe) != 0) std::printf("    (vtk_pipeline.py failed: %s)\n", command);
+  return stages;
+}
+
+int usage() {
+  std::fprintf(stderr,
+               "usage: pipeline_bench (--series DIR | --synthetic NXxNYxNZ) [--repeat-z K]\n"
+               "       [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]\n"
+               "       [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]\n"
+               "       [--vtk-python /usr/bin/python3] [--vtk-script bench/vtk_pipeline.py]\n");
+  return 2;
+}
+
+int run(int argc, char** argv) {
+  Input input;
+  std::string presets, isos,
+      thread_list = "1", nrrd_out, out_dir = "/tmp", vtk_python = "/usr/bin/python3",
+      vtk_script = std::string(TYPEMERGE_BENCH_SOURCE_DIR) + "/vtk_pipeline.py";
+  int repeat = 3;
+  bool vtk = false, convert = true;
+  for (int a = 1; a < argc; ++a) {
+    const std::string key = argv[a];
+    if (key == "--vtk") {
+      vtk = true;
+      continue;
+    }
+    if (key == "--no-convert") {
+      convert = false;
+      continue;
+    }
+    if (a + 1 >= argc) return usage();
+    const std::string value = argv[++a];
+    if (key == "--series")
+      input.series_dir = value;
+    else if (key == "--synthetic") {
+      if (std::sscanf(value.c_str(), "%ldx%ldx%ld", &input.nx, &input.ny, &input.nz) != 3) {
+        return usage();
+      }
+    } else if (key == "--repeat-z")
+      input.repeat_z = std::max(1, std::stoi(value));
+    else if (key == "--preset")
+      presets = value;
+    else if (key == "--iso")
+      isos = value;
+    else if (key == "--threads")
+      thread_list = value;
+    else if (key == "--repeat")
+      repeat = std::max(1, std::stoi(value));
+    else if (key == "--out-dir")
+      out_dir = value;
+    else if (key == "--write-nrrd")
+      nrrd_out = value;
+    else if (key == "--vtk-python")
+      vtk_python = value;
+    else if (key == "--vtk-script")
+      vtk_script = value;
+    else
+      return usage();
+  }
+  if (input.series_dir.empty() == (input.nx == 0)) return usage();
+  if (presets.empty() && isos.empty()) presets = "bone";
+
+  std::vector<Surface> surfaces;
+  for (const std::string& name : split(presets)) {
+    const auto preset = app::find_preset(name);
+    if (!preset) {
+      std::fprintf(stderr, "unknown preset '%s'\n", name.c_str());
+      return 2;
+    }
+    Surface s{
+        preset->name,          preset->lo,          std::nullopt, true, preset->min_component_mm3,
+        preset->fill_cavities, preset->keep_largest};
+    if (std::isfinite(preset->hi)) s.hi = preset->hi;
+    surfaces.push_back(s);
+  }
+  for (const std::string& text : split(isos)) {
+    surfaces.push_back({"iso" + text, std::stod(text), std::nullopt, false, 0, false, false});
+  }
+
+  fs::create_directories(out_dir);
+  g_peak_resets = reset_peak_rss();
+  const std::string name = input.series_dir.empty()
+                               ? "synthetic " + std::to_string(input.nx) + "x" +
+                                     std::to_string(input.ny) + "x" + std::to_string(input.nz)
+                               : input.series_dir;
+  std::printf("pipeline_bench: %s%s, repeat %d (median), out-dir %s\n", name.c_str(),
+              input.repeat_z > 1 ? (", slices x" + std::to_string(input.repeat_z)).c_str() : "",
+              repeat, out_dir.c_str());
+  std::printf("peak memory: %s\n", g_peak_resets
+                                       ? "VmHWM reset before each stage (/proc/self/clear_refs)"
+                                       : "clear_refs refused: peak is since process start");
+
+  // What VTK reads: the DICOM folder itself, or (synthetic, --repeat-z) the volume as loaded,
+  // before table removal, written once as NRRD.
+  const bool vtk_reads_dicom = !input.series_dir.empty() && input.repeat_z == 1;
+  if (vtk && !vtk_reads_dicom && nrrd_out.empty())
+    nrrd_out = (fs::path(out_dir) / "pipeline_bench.nrrd").string();
+  if (!nrrd_out.empty()) {
+    io::write_nrrd(load_input(input), nrrd_out, io::NrrdSampleType::float32);
+    std::printf("volume written to %s\n", nrrd_out.c_str());
+  }
+
+  for (const Surface& surface : surfaces) {
+    for (const std::string& thread_text : split(thread_list)) {
+      RunSettings settings{input, surface, static_cast<unsigned>(std::stoi(thread_text)), out_dir};
+      std::vector<std::vector<StageFigures>> runs;
+      double cells = 0;
+      for (int r = 0; r < repeat; ++r) runs.push_back(run_stages(settings, cells));
+      std::vector<StageFigures> summary = summarize(runs);
+
+      std::optional<StageFigures> whole;
+      if (convert && !input.series_dir.empty() && input.repeat_z == 1) {
+        std::vector<std::vector<StageFigures>> convert_runs;
+        for (int r = 0; r < repeat; ++r) convert_runs.push_back({run_convert_once(settings)});
+        whole = summarize(convert_runs).front();
+      }
+
+      std::printf("\n%s (%s %g HU), %s thread(s), %.1f M cells (load average %s):\n",
+                  surface.name.c_str(), surface.preset ? "preset, lo" : "iso", surface.lo,
+                  thread_text.c_str(), cells / 1e6, load_average().c_str());
+      print_header();
+      for (const auto& f : summary) print_row(f);
+      if (whole) print_row(*whole);
+
+      if (!vtk) continue;
+      const std::string vtk_source =
+          vtk_reads_dicom ? "--dicom " + input.series_dir : "--nrrd " + nrrd_out;
+      const auto vtk_stages = run_vtk(vtk_python, vtk_script, vtk_source, surface.lo,
+                                      settings.threads, repeat, out_dir);
+      if (vtk_stages.count("read") == 0 || vtk_stages.count("flying_edges") == 0 ||
+          vtk_stages.count("write") == 0) {
+        continue;
+      }
+      auto stage = [&](const std::string& stage_name) {
+        for (const auto& f : summary) {
+          if (f.name == stage_name) return f.wall_ms;
+        }
+        return 0.0;
+      };
+      const double fe = vtk_stages.at("flying_edges").wall_ms;
+      const double vtk_read = vtk_stages.at("read").wall_ms;
+      const double vtk_write = vtk_stages.at("write").wall_ms;
+      const double ours_after_load = summary.back().wall_ms - stage("load");
+      std::printf("  %-16s %9.1f %9.1f %5.2f %9.1f %11s %11zu %9s %9.1f\n", "vtk read", vtk_read,
+                  vtk_stages.at("read").cpu_ms, vtk_stages.at("read").cpu_ms / vtk_read,
+                  cells / vtk_read / 1e3, "-", std::size_t{0}, "-",
+                  double(vtk_stages.at("read").peak_kib) / 1024);
+      std::printf("  %-16s %9.1f %9.1f %5.2f %9.1f %11s %11zu %9s %9.1f\n", "vtk flying_edges", fe,
+                  vtk_stages.at("flying_edges").cpu_ms, vtk_stages.at("flying_edges").cpu_ms / fe,
+                  cells / fe / 1e3, "-", vtk_stages.at("flying_edges").triangles_out, "-",
+                  double(vtk_stages.at("flying_edges").peak_kib) / 1024);
+      std::printf("  %-16s %9.1f %9.1f %5.2f %9s %11zu %11zu %9s %9.1f\n", "vtk write", vtk_write,
+                  vtk_stages.at("write").cpu_ms, vtk_stages.at("write").cpu_ms / vtk_write, "-",
+                  vtk_stages.at("flying_edges").triangles_out, vtk_stages.at("write").triangles_out,
+                  "-", double(vtk_stages.at("write").peak_kib) / 1024);
+      std::printf("  ratios (ours / VTK, wall, < 1 = ours faster):\n");
+      std::printf("    mc / flying_edges                      %6.2f\n", stage("mc") / fe);
+      std::printf("    (mc + tm) / flying_edges               %6.2f\n",
+                  (stage("mc") + stage("tm")) / fe);
+      std::printf(
+          "    stages after load / (FE + write)       %6.2f   (ours %.0f ms incl. "
+          "table, checks, finishing)\n",
+          ours_after_load / (fe + vtk_write), ours_after_load);
+      std::printf(
+          "    sum of stages / (read + FE + write)    %6.2f   (our load decodes %s; "
+          "VTK reads %s)\n",
+          summary.back().wall_ms / (vtk_read + fe + vtk_write),
+          input.series_dir.empty() ? "nothing (synthetic)" : "DICOM",
+          vtk_reads_dicom ? "the DICOM folder" : "the NRRD");
+      if (whole) {
+        std::printf("    convert / (read + FE + write)          %6.2f\n",
+                    whole->wall_ms / (vtk_read + fe + vtk_write));
+      }
+    }
+  }
+  return 0;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "pipeline_bench: %s\n", error.what());
+    return 1;
+  }
+}
