@@ -2,6 +2,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -60,65 +61,91 @@ std::size_t keep_largest_component(std::vector<std::uint8_t>& mask, const core::
 }  // namespace
 
 StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& options) {
-  if (!(options.opening_mm > 0) || !(options.margin_mm >= 0)) {
-    throw std::invalid_argument("body mask: opening_mm must be > 0 and margin_mm >= 0");
+  if (!(options.opening_mm > 0) || !(options.restore_mm >= 0) || !(options.edge_mm >= 0) ||
+      !(options.body_threshold_hu >= options.air_threshold_hu)) {
+    throw std::invalid_argument(
+        "body mask: opening_mm must be > 0, restore_mm and edge_mm >= 0, and the body "
+        "threshold at or above the air threshold");
   }
   const core::VolumeSize size = volume.size();
   const auto slice_voxels = static_cast<std::size_t>(size.nx * size.ny);
   const int rows = static_cast<int>(size.ny), cols = static_cast<int>(size.nx);
   const double sx = volume.geometry().spacing(0), sy = volume.geometry().spacing(1);
+  auto slice_mat = [&](std::vector<std::uint8_t>& mask, std::int64_t k) {
+    return cv::Mat(rows, cols, CV_8U, mask.data() + k * std::int64_t(slice_voxels));
+  };
+  // Slices are independent in steps 1, 3 and 4: TBB runs them on every core.
+  auto each_slice = [&](auto&& body) {
+    tbb::parallel_for(std::int64_t{0}, size.nz, [&](std::int64_t k) { body(k); });
+  };
 
-  std::vector<std::uint8_t> dense(volume.samples().size());
+  // 1–2. Tissue, opened in-plane; the seed is its largest 3D component.
+  std::vector<std::uint8_t> tissue(volume.samples().size());
   std::vector<std::uint8_t> seed(volume.samples().size());
   const cv::Mat opening = disk(options.opening_mm, sx, sy);
-  for (std::int64_t k = 0; k < size.nz; ++k) {
+  each_slice([&](std::int64_t k) {
     const float* in = volume.slice(k);
-    std::uint8_t* d = dense.data() + k * slice_voxels;
-    for (std::size_t p = 0; p < slice_voxels; ++p) d[p] = in[p] > options.air_threshold_hu ? 255 : 0;
-    const cv::Mat dense_slice(rows, cols, CV_8U, d);
-    cv::Mat seed_slice(rows, cols, CV_8U, seed.data() + k * slice_voxels);
-    cv::morphologyEx(dense_slice, seed_slice, cv::MORPH_OPEN, opening);
-  }
+    std::uint8_t* t = tissue.data() + k * std::int64_t(slice_voxels);
+    for (std::size_t p = 0; p < slice_voxels; ++p) t[p] = in[p] > options.body_threshold_hu ? 255 : 0;
+    cv::Mat seed_slice = slice_mat(seed, k);
+    cv::morphologyEx(slice_mat(tissue, k), seed_slice, cv::MORPH_OPEN, opening);
+  });
   const std::size_t components = keep_largest_component(seed, size);
 
   StepRecord record;
   record.step = "remove_outside_body";
   record.size_before = record.size_after = size;
   record.parameters = {{"air_threshold_hu", detail::format_number(options.air_threshold_hu)},
+                       {"body_threshold_hu", detail::format_number(options.body_threshold_hu)},
                        {"opening_mm", detail::format_number(options.opening_mm)},
-                       {"margin_mm", detail::format_number(options.margin_mm)}};
+                       {"restore_mm", detail::format_number(options.restore_mm)},
+                       {"edge_mm", detail::format_number(options.edge_mm)}};
   if (components == 0) {
-    record.description = "no body found (nothing denser than air after the opening); unchanged";
+    record.description = "no body found (no tissue after the opening); unchanged";
     record.warnings.push_back("no body found: nothing was removed");
     return {std::move(volume), std::move(record)};
   }
-  // Grow the body back in-plane and by one slice, inside the original dense mask.
-  const cv::Mat grow = disk(options.opening_mm + options.margin_mm, sx, sy);
-  std::vector<std::uint8_t> keep(volume.samples().size());
-  for (std::int64_t k = 0; k < size.nz; ++k) {
+
+  // 3. The body: tissue within reach of the seed (this slice or a neighbour).
+  std::vector<std::uint8_t> body(volume.samples().size());
+  const cv::Mat restore = disk(options.opening_mm + options.restore_mm, sx, sy);
+  each_slice([&](std::int64_t k) {
+    cv::Mat near = slice_mat(seed, k) * 255;
+    for (std::int64_t n : {k - 1, k + 1}) {
+      if (n >= 0 && n < size.nz) near = cv::max(near, slice_mat(seed, n) * 255);
+    }
     cv::Mat grown;
-    cv::Mat seed_slice(rows, cols, CV_8U, seed.data() + k * slice_voxels);
-    cv::Mat here = seed_slice * 255;
-    for (std::int64_t dk : {k - 1, k + 1}) {
-      if (dk < 0 || dk >= size.nz) continue;
-      here = cv::max(here, cv::Mat(rows, cols, CV_8U, seed.data() + dk * slice_voxels) * 255);
+    cv::dilate(near, grown, restore);
+    cv::Mat body_slice = slice_mat(body, k);
+    cv::bitwise_and(grown, slice_mat(tissue, k), body_slice);
+  });
+
+  // 4. Keep the body and its partial-volume edge; clear whatever else is denser than air.
+  std::vector<std::int64_t> cleared_in_slice(static_cast<std::size_t>(size.nz), 0);
+  const cv::Mat edge = options.edge_mm > 0 ? disk(options.edge_mm, sx, sy) : cv::Mat();
+  each_slice([&](std::int64_t k) {
+    cv::Mat near = slice_mat(body, k).clone();
+    for (std::int64_t n : {k - 1, k + 1}) {
+      if (n >= 0 && n < size.nz) near = cv::max(near, slice_mat(body, n));
     }
-    cv::dilate(here, grown, grow);
-    std::uint8_t* out = keep.data() + k * slice_voxels;
-    const std::uint8_t* d = dense.data() + k * slice_voxels;
-    for (std::size_t p = 0; p < slice_voxels; ++p) out[p] = grown.data[p] && d[p];
-  }
+    cv::Mat keep = near;
+    if (!edge.empty()) cv::dilate(near, keep, edge);
+    float* values = volume.slice(k);
+    std::int64_t cleared = 0;
+    for (std::size_t p = 0; p < slice_voxels; ++p) {
+      if (values[p] > options.air_threshold_hu && keep.data[p] == 0) {
+        values[p] = -1000.0f;
+        ++cleared;
+      }
+    }
+    cleared_in_slice[static_cast<std::size_t>(k)] = cleared;
+  });
   std::int64_t cleared = 0;
-  for (std::size_t v = 0; v < keep.size(); ++v) {
-    if (dense[v] && !keep[v]) {
-      volume.samples()[v] = -1000.0f;
-      ++cleared;
-    }
-  }
+  for (std::int64_t c : cleared_in_slice) cleared += c;
   record.parameters.emplace_back("components", std::to_string(components));
   record.parameters.emplace_back("cleared_voxels", std::to_string(cleared));
   record.description = "kept the largest of " + std::to_string(components) +
-                       " dense components (the body); " + std::to_string(cleared) +
+                       " tissue components (the body) and its edge; " + std::to_string(cleared) +
                        " voxels outside it set to air";
   return {std::move(volume), std::move(record)};
 }

@@ -1,15 +1,23 @@
 // remove_outside_body: clears everything that is not the patient — the scanner table, its
 // rails, the mattress, cables, positioning aids — to air before surfaces are extracted.
 //
-// Users of every peer tool cut the table off the skin and bone surfaces by hand. The table
-// touches the patient, so component rules on the surface cannot separate them; in the
-// volume they can: the body is the largest 3D component of "denser than air" after an
-// in-plane opening that cuts thin contacts (a mattress seam, a table top a few mm thick); it
-// is then grown back by the opening radius plus a margin, inside the original mask, so the
-// patient's own surface is untouched except where it is thinner than the opening (tips of
-// the nose and ears are kept by the growth; detached fingers would not be).
+// Users of every peer tool cut the table off the skin and bone surfaces by hand. The table and
+// the mattress touch the patient, so component rules on the surface cannot separate them; in
+// the volume they can:
+//   1. tissue: voxels of fat or denser (> body_threshold_hu, −200). Mattresses, pads and
+//      blankets (foam, −900 to −300 HU) fall out here: measured on the abdomen series, the pad
+//      under the back lies between −900 and −300 HU and is wider than the body.
+//   2. seed: the largest 3D component of the tissue after an in-plane opening that cuts thin
+//      contacts (a table top a few mm thick touching the back).
+//   3. body: the tissue within opening + restore_mm of the seed (thin parts of the patient the
+//      opening removed — nose, ears — come back; a board touching the back stays cut unless
+//      it is within that distance).
+//   4. keep: the body grown by edge_mm in-plane and by one slice, so the partial-volume edge
+//      around it (skin at −718 HU lies between tissue and air) is untouched.
+// Voxels denser than air (> air_threshold_hu) outside `keep` become air. A pad touching the
+// back is thereby cut to a fringe at most edge_mm thick along the contact.
 //
-// Memory: the volume, three byte masks and a 32-bit component label per voxel.
+// Memory: the volume and three byte masks; slices run in parallel.
 #pragma once
 
 #include <cstdint>
@@ -20,9 +28,14 @@
 namespace typemerge::preprocess {
 
 struct BodyMaskOptions {
-  float air_threshold_hu = -500;  // "denser than air": between air (−1000) and fat (−100)
-  double opening_mm = 5;          // > 0; radius of the in-plane opening that cuts contacts
-  double margin_mm = 3;           // ≥ 0; extra growth kept around the body
+  // What is cleared outside the body: anything above this. It must lie below every surface
+  // threshold used afterwards (skin: −718), or material between the two survives outside the
+  // body: at −500 the abdomen's pad (−700 to −300 HU) stayed under the skin surface.
+  float air_threshold_hu = -950;
+  float body_threshold_hu = -200;  // tissue: fat (−100) and denser; foam pads are below
+  double opening_mm = 5;           // > 0; radius of the in-plane opening that cuts contacts
+  double restore_mm = 3;           // ≥ 0; growth beyond the opening radius that restores thin parts
+  double edge_mm = 2;              // ≥ 0; partial-volume edge kept around the body
 };
 
 // Voxels outside the body become −1000 HU. The record says how many voxels were cleared and

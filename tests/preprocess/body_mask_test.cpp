@@ -58,6 +58,44 @@ TEST(BodyMask, ClearsTableAndRailsKeepsTheBody) {
   EXPECT_GT(std::stoi(*result.record.parameter("cleared_voxels")), 12 * 2 * 4 * 4);
 }
 
+// The abdomen series' case: a foam pad (here −400 HU, 6 mm thick) under the back, wider than
+// the body, touching it along its whole width, and the table top under the pad.
+TEST(BodyMask, ClearsAPadWiderThanTheBodyDownToAThinFringe) {
+  core::Volume input = body_on_table();
+  for (std::int64_t k = 0; k < 12; ++k) {
+    for (std::int64_t j = 0; j < 70; ++j) {
+      for (std::int64_t i = 0; i < 80; ++i) {
+        const double x = double(i) - 40, y = double(j) - 30;
+        if (y >= 14 && y < 20 && std::abs(x) < 38 && x * x + y * y > 400) input.at(i, j, k) = -400;
+      }
+    }
+  }
+  const StepResult result = remove_outside_body(input);
+  const core::Volume& out = result.volume;
+  EXPECT_EQ(out.at(40 + 30, 30 + 17, 5), -1000.0f);  // the pad beside the body
+  EXPECT_EQ(out.at(40 - 30, 30 + 17, 5), -1000.0f);
+  EXPECT_EQ(out.at(5, 51, 5), -1000.0f);              // the table top
+  // What is left of the pad lies under the body: within the restore reach of the body (the
+  // table top touching it counts as body there, like a nose would) plus the 2 mm edge.
+  int pad = 0, left = 0;
+  for (std::int64_t j = 0; j < 70; ++j) {
+    for (std::int64_t i = 0; i < 80; ++i) {
+      const double x = double(i) - 40, y = double(j) - 30;
+      if (input.at(i, j, 5) == -400.0f) {
+        ++pad;
+        if (out.at(i, j, 5) == -400.0f) {
+          ++left;
+          EXPECT_LE(std::abs(x), 22.0) << i << "," << j;  // the pad reaches 38
+        }
+      }
+      if (x * x + y * y <= 400) {
+        ASSERT_EQ(out.at(i, j, 5), input.at(i, j, 5));
+      }
+    }
+  }
+  EXPECT_LT(left * 4, pad) << left << " of " << pad << " pad voxels left";
+}
+
 TEST(BodyMask, EmptyVolumeIsReturnedWithAWarning) {
   core::Volume air({10, 10, 4}, {});
   for (float& v : air.samples()) v = -1000;
