@@ -13,6 +13,7 @@ packages=(
   nlohmann-json3-dev      # reports and `info --json`
   libtbb-dev              # parallel slabs and decoding
   libxxhash-dev           # batch: content keys of input studies
+  lib3mf-dev libzip-dev   # 3MF export (lib3MF.pc links -lzip)
   libgtest-dev libgmock-dev libbenchmark-dev
   dcm2niix                # independent reference for the loader tests
   clang libclang-rt-14-dev  # fuzz/: Clang 14 and its libFuzzer + sanitizer runtimes

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/three_mf_writer.h"
 #include "io/stl_writer.h"
 
 namespace typemerge::io {
@@ -92,7 +93,9 @@ MeshFormat mesh_format_for(const std::filesystem::path& path, bool ascii_stl) {
   }
   if (extension == ".ply" || extension == ".PLY") return MeshFormat::ply;
   if (extension == ".obj" || extension == ".OBJ") return MeshFormat::obj;
-  throw std::invalid_argument("unknown mesh format '" + extension + "' (use .stl, .ply or .obj)");
+  if (extension == ".3mf" || extension == ".3MF") return MeshFormat::three_mf;
+  throw std::invalid_argument("unknown mesh format '" + extension +
+                              "' (use .stl, .3mf, .ply or .obj)");
 }
 
 void write_mesh(const core::TriangleMesh& mesh, const std::filesystem::path& path,
@@ -103,12 +106,17 @@ void write_mesh(const core::TriangleMesh& mesh, const std::filesystem::path& pat
     write_binary_stl(mesh, path, header);
     return;
   }
+  if (format == MeshFormat::three_mf) {
+    write_3mf(mesh, path, comment);
+    return;
+  }
   AtomicFile file(path);
   switch (format) {
     case MeshFormat::ascii_stl: write_ascii_stl(mesh, file, comment); break;
     case MeshFormat::ply: write_ply(mesh, file, comment); break;
     case MeshFormat::obj: write_obj(mesh, file, comment); break;
-    case MeshFormat::binary_stl: break;
+    case MeshFormat::binary_stl:
+    case MeshFormat::three_mf: break;
   }
   file.commit();
 }

@@ -1,5 +1,5 @@
-// Mesh files besides binary STL: ASCII STL, PLY (binary little endian) and OBJ, chosen by the
-// output's extension. All written atomically; coordinates as given (the caller maps spaces).
+// Mesh files besides binary STL: ASCII STL, PLY (binary little endian), OBJ and 3MF, chosen by
+// the output's extension. All written atomically; coordinates as given (the caller maps spaces).
 #pragma once
 
 #include <filesystem>
@@ -9,9 +9,9 @@
 
 namespace typemerge::io {
 
-enum class MeshFormat { binary_stl, ascii_stl, ply, obj };
+enum class MeshFormat { binary_stl, ascii_stl, ply, obj, three_mf };
 
-// .stl → binary STL (ascii_stl only on request), .ply, .obj; throws std::invalid_argument for
+// .stl → binary STL (ascii_stl only on request), .ply, .obj, .3mf; throws std::invalid_argument for
 // other extensions.
 MeshFormat mesh_format_for(const std::filesystem::path& path, bool ascii_stl);
 

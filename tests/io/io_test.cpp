@@ -8,7 +8,10 @@
 #include "core/mesh_checks.h"
 #include "io/atomic_file.h"
 #include "io/nrrd_writer.h"
+#include "io/mesh_writers.h"
 #include "io/stl_writer.h"
+
+#include <Model/COM/NMR_DLLInterfaces.h>
 
 namespace typemerge::io {
 namespace {
@@ -116,6 +119,55 @@ TEST(Nrrd, HeaderCarriesTheShearedGeometryAndSamplesFollow) {
   std::int16_t first = 0;
   std::memcpy(&first, i.data() + i.find("\n\n") + 2, 2);
   EXPECT_EQ(first, -10);  // rounded to the nearest HU
+}
+
+// Read back with lib3mf's own reader: the unit, every vertex and every triangle.
+TEST(ThreeMf, PackageHoldsTheMeshInMillimetres) {
+  const fs::path file = fresh_dir("3mf") / "tetra.3mf";
+  ASSERT_EQ(mesh_format_for(file, false), MeshFormat::three_mf);
+  core::TriangleMesh mesh = tetrahedron();
+  for (auto& p : mesh.positions) p[0] += 12.5f;
+  write_mesh(mesh, file, MeshFormat::three_mf, "typemerge test");
+  EXPECT_EQ(read_all(file).substr(0, 2), "PK");  // a zip package
+  for (const auto& entry : fs::directory_iterator(file.parent_path())) {
+    EXPECT_EQ(entry.path().extension(), ".3mf") << "left over: " << entry.path();
+  }
+
+  NMR::PLib3MFModel* model = nullptr;
+  ASSERT_EQ(NMR::lib3mf_createmodel(&model), LIB3MF_OK);
+  NMR::PLib3MFModelReader* reader = nullptr;
+  ASSERT_EQ(NMR::lib3mf_model_queryreader(model, "3mf", &reader), LIB3MF_OK);
+  ASSERT_EQ(NMR::lib3mf_reader_readfromfileutf8(reader, file.c_str()), LIB3MF_OK);
+  DWORD unit = 99;
+  NMR::lib3mf_model_getunit(model, &unit);
+  EXPECT_EQ(unit, DWORD(NMR::MODELUNIT_MILLIMETER));
+  NMR::PLib3MFModelResourceIterator* objects = nullptr;
+  ASSERT_EQ(NMR::lib3mf_model_getmeshobjects(model, &objects), LIB3MF_OK);
+  BOOL has_next = false;
+  ASSERT_EQ(NMR::lib3mf_resourceiterator_movenext(objects, &has_next), LIB3MF_OK);
+  ASSERT_TRUE(has_next);
+  NMR::PLib3MFModelResource* resource = nullptr;
+  ASSERT_EQ(NMR::lib3mf_resourceiterator_getcurrent(objects, &resource), LIB3MF_OK);
+  auto* object = static_cast<NMR::PLib3MFModelMeshObject*>(resource);
+  DWORD vertices = 0, triangles = 0;
+  NMR::lib3mf_meshobject_getvertexcount(object, &vertices);
+  NMR::lib3mf_meshobject_gettrianglecount(object, &triangles);
+  EXPECT_EQ(vertices, 4u);
+  EXPECT_EQ(triangles, 4u);
+  for (DWORD v = 0; v < vertices; ++v) {
+    NMR::MODELMESHVERTEX vertex{};
+    NMR::lib3mf_meshobject_getvertex(object, v, &vertex);
+    for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(vertex.m_fPosition[c], mesh.positions[v][c]);
+  }
+  for (DWORD t = 0; t < triangles; ++t) {
+    NMR::MODELMESHTRIANGLE triangle{};
+    NMR::lib3mf_meshobject_gettriangle(object, t, &triangle);
+    for (int c = 0; c < 3; ++c) EXPECT_EQ(triangle.m_nIndices[c], mesh.triangles[t][c]);
+  }
+  NMR::lib3mf_release(resource);
+  NMR::lib3mf_release(objects);
+  NMR::lib3mf_release(reader);
+  NMR::lib3mf_release(model);
 }
 
 }  // namespace
