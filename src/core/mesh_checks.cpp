@@ -1,5 +1,8 @@
-// check_mesh: edge counts by sorting half-edges, vertex links by sorting the link edges of
-// each vertex, components by union-find. Nothing clever, so it can serve as the oracle.
+// check_mesh: half-edges and vertex links bucketed by vertex (counting sort, O(n)), each small
+// bucket examined on its own; components by union-find. detail::check_mesh_by_sorting is the
+// first, simplest version (one global sort of the half-edges, a vector per vertex): it stays as
+// the oracle the fast one is tested against. The fast one exists because the pipeline checks
+// the mesh after every finishing step: on 600 k triangles the sorting version took 0.35 s.
 #include "core/mesh_checks.h"
 
 #include <algorithm>
@@ -54,16 +57,15 @@ bool link_is_disk_or_fan(std::vector<std::pair<std::uint32_t, std::uint32_t>>& l
   return true;
 }
 
-}  // namespace
-
-MeshCheck check_mesh(const TriangleMesh& mesh) {
-  MeshCheck check;
+// Area, signed volume and degenerate triangles; returns the triangles with distinct indices.
+std::vector<std::array<std::uint32_t, 3>> measure_triangles(const TriangleMesh& mesh,
+                                                            MeshCheck& check) {
   const std::size_t n = mesh.positions.size();
-
   std::vector<std::array<std::uint32_t, 3>> valid;
   valid.reserve(mesh.triangles.size());
   for (const auto& t : mesh.triangles) {
     assert(t[0] < n && t[1] < n && t[2] < n);
+    (void)n;
     if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
       ++check.degenerate_triangles;
       continue;
@@ -84,6 +86,89 @@ MeshCheck check_mesh(const TriangleMesh& mesh) {
         6.0;
   }
   check.triangles = valid.size();
+  return valid;
+}
+
+// Bucket start offsets (size n + 1) of `count` entries per vertex.
+std::vector<std::uint32_t> prefix_offsets(std::vector<std::uint32_t> count) {
+  std::vector<std::uint32_t> offsets(count.size() + 1, 0);
+  for (std::size_t v = 0; v < count.size(); ++v) offsets[v + 1] = offsets[v] + count[v];
+  return offsets;
+}
+
+}  // namespace
+
+MeshCheck check_mesh(const TriangleMesh& mesh) {
+  MeshCheck check;
+  const std::size_t n = mesh.positions.size();
+  const std::vector<std::array<std::uint32_t, 3>> valid = measure_triangles(mesh, check);
+
+  // Edges: half-edges bucketed by their lower vertex; within a bucket (a handful) by the other.
+  std::vector<std::uint32_t> count(n, 0);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) ++count[std::min(t[k], t[(k + 1) % 3])];
+  }
+  std::vector<std::uint32_t> offsets = prefix_offsets(std::move(count));
+  std::vector<std::uint32_t> fill(offsets.begin(), offsets.end() - 1);
+  // Other end, shifted left by one, with the direction (1: runs low → high) in bit 0.
+  std::vector<std::uint64_t> edge_ends(valid.size() * 3);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
+      edge_ends[fill[std::min(a, b)]++] = (std::uint64_t(std::max(a, b)) << 1) | (a < b ? 1u : 0u);
+    }
+  }
+  for (std::size_t v = 0; v < n; ++v) {
+    const auto first = edge_ends.begin() + offsets[v], last = edge_ends.begin() + offsets[v + 1];
+    std::sort(first, last);
+    for (auto i = first; i != last;) {
+      auto j = i;
+      std::size_t forward = 0;
+      while (j != last && (*j >> 1) == (*i >> 1)) forward += (*j++ & 1u);
+      const auto uses = static_cast<std::size_t>(j - i);
+      ++check.edges;
+      if (uses == 1) ++check.boundary_edges;
+      if (uses > 2) ++check.non_manifold_edges;
+      if (forward > 1 || uses - forward > 1) ++check.inconsistent_edges;
+      i = j;
+    }
+  }
+
+  // Vertices: links bucketed by vertex; components by union-find.
+  count.assign(n, 0);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) ++count[t[k]];
+  }
+  offsets = prefix_offsets(std::move(count));
+  fill.assign(offsets.begin(), offsets.end() - 1);
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> link_edges(valid.size() * 3);
+  UnionFind components(n);
+  for (const auto& t : valid) {
+    for (int k = 0; k < 3; ++k) link_edges[fill[t[k]]++] = {t[(k + 1) % 3], t[(k + 2) % 3]};
+    components.unite(t[0], t[1]);
+    components.unite(t[1], t[2]);
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> link;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (offsets[v] == offsets[v + 1]) continue;
+    ++check.vertices;
+    link.assign(link_edges.begin() + offsets[v], link_edges.begin() + offsets[v + 1]);
+    if (!link_is_disk_or_fan(link)) ++check.non_manifold_vertices;
+    if (components.find(v) == v) ++check.components;
+  }
+
+  check.euler_characteristic = static_cast<std::int64_t>(check.vertices) -
+                               static_cast<std::int64_t>(check.edges) +
+                               static_cast<std::int64_t>(check.triangles);
+  return check;
+}
+
+namespace detail {
+
+MeshCheck check_mesh_by_sorting(const TriangleMesh& mesh) {
+  MeshCheck check;
+  const std::size_t n = mesh.positions.size();
+  const std::vector<std::array<std::uint32_t, 3>> valid = measure_triangles(mesh, check);
 
   // Edges: half-edges sorted by their undirected key, then by direction.
   struct HalfEdge {
@@ -140,4 +225,5 @@ MeshCheck check_mesh(const TriangleMesh& mesh) {
   return check;
 }
 
+}  // namespace detail
 }  // namespace typemerge::core

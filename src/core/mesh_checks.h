@@ -40,4 +40,10 @@ struct MeshCheck {
 // Precondition: every index < mesh.positions.size().
 MeshCheck check_mesh(const TriangleMesh& mesh);
 
+namespace detail {
+// The same result by the simplest means (a global sort, a vector per vertex): the oracle of
+// the tests.
+MeshCheck check_mesh_by_sorting(const TriangleMesh& mesh);
+}  // namespace detail
+
 }  // namespace typemerge::core

@@ -4,6 +4,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <random>
+
+#include "core/marching_cubes.h"
+#include "test_volumes.h"
 
 namespace typemerge::core {
 namespace {
@@ -120,6 +124,42 @@ TEST(MeshChecks, EmptyMesh) {
   EXPECT_TRUE(c.closed_manifold());
   EXPECT_EQ(c.components, 0u);
   EXPECT_EQ(c.euler_characteristic, 0);
+}
+
+bool same(const MeshCheck& a, const MeshCheck& b) {
+  return a.vertices == b.vertices && a.edges == b.edges && a.triangles == b.triangles &&
+         a.boundary_edges == b.boundary_edges && a.non_manifold_edges == b.non_manifold_edges &&
+         a.inconsistent_edges == b.inconsistent_edges &&
+         a.non_manifold_vertices == b.non_manifold_vertices &&
+         a.degenerate_triangles == b.degenerate_triangles && a.components == b.components &&
+         a.euler_characteristic == b.euler_characteristic && a.volume == b.volume &&
+         a.area == b.area;
+}
+
+// The bucketed check against the sorting oracle: random triangle soups (every defect at once)
+// and extracted surfaces (closed, many vertices).
+TEST(MeshChecks, BucketedCheckEqualsTheSortingOracle) {
+  std::mt19937 random(7);
+  for (int trial = 0; trial < 200; ++trial) {
+    TriangleMesh soup;
+    const auto n = static_cast<std::uint32_t>(3 + random() % 12);
+    for (std::uint32_t v = 0; v < n; ++v) {
+      soup.positions.push_back({float(random() % 4), float(random() % 4), float(random() % 4)});
+    }
+    const std::size_t triangles = random() % 30;
+    for (std::size_t t = 0; t < triangles; ++t) {
+      soup.triangles.push_back({std::uint32_t(random() % n), std::uint32_t(random() % n),
+                                std::uint32_t(random() % n)});
+    }
+    ASSERT_TRUE(same(check_mesh(soup), detail::check_mesh_by_sorting(soup))) << trial;
+  }
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    const TriangleMesh mesh = extract_isosurface(test::noise_volume(12, 11, 10, seed), 0.5f);
+    const MeshCheck fast = check_mesh(mesh);
+    EXPECT_TRUE(same(fast, detail::check_mesh_by_sorting(mesh)));
+    EXPECT_TRUE(fast.closed_manifold());
+    EXPECT_GT(fast.triangles, 100u);
+  }
 }
 
 }  // namespace
