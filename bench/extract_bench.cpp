@@ -26,6 +26,7 @@
 #include "core/type_merging.h"
 #include "dicom/series_loader.h"
 #include "io/nrrd_writer.h"
+#include "list_argument.h"
 #include "synthetic_volume.h"
 
 namespace {
@@ -51,13 +52,7 @@ long current_memory_kib() {
   return -1;
 }
 
-std::vector<std::string> split(const std::string& text) {
-  std::vector<std::string> parts;
-  std::stringstream stream(text);
-  std::string part;
-  while (std::getline(stream, part, ',')) parts.push_back(part);
-  return parts;
-}
+using typemerge::bench::split;
 
 int usage() {
   std::fprintf(stderr,

@@ -63,6 +63,7 @@
 #include "mesh/components.h"
 #include "mesh/validity.h"
 #include "preprocess/body_mask.h"
+#include "list_argument.h"
 #include "synthetic_volume.h"
 
 #ifndef TYPEMERGE_BENCH_SOURCE_DIR
@@ -207,13 +208,7 @@ struct Surface {
   bool keep_largest = false;
 };
 
-std::vector<std::string> split(const std::string& text) {
-  std::vector<std::string> parts;
-  std::stringstream stream(text);
-  std::string part;
-  while (std::getline(stream, part, ',')) parts.push_back(part);
-  return parts;
-}
+using typemerge::bench::split;
 
 // ---- the input volume ---------------------------------------------------------------------
 

@@ -227,20 +227,28 @@ std::size_t records_in(const fs::path& out) {
   return n;
 }
 
+// Runs a batch in the background, sends `signal` once its first study is recorded as done,
+// and returns its wait status.
+int signal_after_first_study(const std::string& arguments, const fs::path& out,
+                             const fs::path& log, int signal) {
+  const pid_t pid = start_batch(arguments, log);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
+  while (records_in(out) < 1 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ::kill(pid, signal);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return status;
+}
+
 TEST(Batch, AKilledRunResumesToTheSameOutputsAsAnUninterruptedOne) {
   const fs::path work = fresh_dir("batch_kill");
   ASSERT_EQ(run_cli(batch(work / "whole", "--threads 1")).exit_code, 5);
   const auto whole = outputs_of(work / "whole");
 
   const fs::path out = work / "killed";
-  const pid_t pid = start_batch(batch(out, "--threads 1"), work / "killed.log");
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (records_in(out) < 1 && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  ::kill(pid, SIGKILL);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  signal_after_first_study(batch(out, "--threads 1"), out, work / "killed.log", SIGKILL);
   const std::size_t done_before = records_in(out);
   EXPECT_GE(done_before, 1u);
   EXPECT_LT(done_before, 3u) << "the batch finished before it could be killed";
@@ -264,14 +272,7 @@ TEST(Batch, AKilledRunResumesToTheSameOutputsAsAnUninterruptedOne) {
 TEST(Batch, InterruptStopsCleanlyAndSaysSo) {
   const fs::path work = fresh_dir("batch_interrupt");
   const fs::path out = work / "out";
-  const pid_t pid = start_batch(batch(out, "--threads 1"), work / "log");
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (records_in(out) < 1 && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  ::kill(pid, SIGINT);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const int status = signal_after_first_study(batch(out, "--threads 1"), out, work / "log", SIGINT);
   ASSERT_TRUE(WIFEXITED(status));
   const json summary = summary_of(out / "summary.json");
   if (summary["interrupted"].get<int>() == 0) GTEST_SKIP() << "the batch ended before the signal";
