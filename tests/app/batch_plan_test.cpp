@@ -1,7 +1,11 @@
 // Batch planning, names, shards, manifest keys and summaries, on a generated study tree.
 #include <gtest/gtest.h>
 
+#include <signal.h>
 #include <unistd.h>
+
+#include <chrono>
+#include <thread>
 
 #include <algorithm>
 #include <fstream>
@@ -11,6 +15,7 @@
 #include "app/batch_manifest.h"
 #include "app/batch_plan.h"
 #include "app/batch_summary.h"
+#include "app/child_process.h"
 #include "app/memory_budget.h"
 #include "app/cli_runner.h"
 #include "app/study_tree.h"
@@ -235,6 +240,47 @@ TEST(BatchCommand, MemorySizesParse) {
   for (const char* bad : {"", "G", "-1G", "0", "8X", "nan", "1e30T"}) {
     EXPECT_THROW(parse_memory_size(bad), std::invalid_argument) << bad;
   }
+}
+
+// The isolation the batch relies on: exit codes, signals (a crash), captured output, kill.
+std::optional<ChildResult> wait_for(ChildProcess& child) {
+  for (int i = 0; i < 2000; ++i) {
+    if (auto result = child.poll()) return result;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return std::nullopt;
+}
+
+TEST(ChildProcess, ReportsExitCodesSignalsAndOutputWithoutAShell) {
+  const fs::path dir = typemerge::test::fresh_dir("child");
+  ChildProcess ok({{"/bin/sh", "-c", "echo out; echo err >&2; exit 3"}, dir / "ok.txt"});
+  auto result = wait_for(ok);
+  ASSERT_TRUE(result);
+  EXPECT_TRUE(result->exited);
+  EXPECT_EQ(result->exit_code, 3);
+  EXPECT_EQ(typemerge::test::read_file_bytes(dir / "ok.txt"), "out\nerr\n");
+
+  ChildProcess crash({{"/bin/sh", "-c", "kill -SEGV $$"}, dir / "crash.txt"});
+  result = wait_for(crash);
+  ASSERT_TRUE(result);
+  EXPECT_FALSE(result->exited);
+  EXPECT_EQ(result->signal, SIGSEGV);
+
+  // Arguments reach the program as they are: no shell expands them.
+  ChildProcess literal({{"/bin/echo", "$HOME", "*", "a;b"}, dir / "literal.txt"});
+  ASSERT_TRUE(wait_for(literal));
+  EXPECT_EQ(typemerge::test::read_file_bytes(dir / "literal.txt"), "$HOME * a;b\n");
+
+  ChildProcess hang({{"/bin/sleep", "30"}, dir / "hang.txt"});
+  hang.kill();
+  result = wait_for(hang);
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->signal, SIGKILL);
+
+  ChildProcess missing({{"/nonexistent/program"}, dir / "missing.txt"});
+  result = wait_for(missing);
+  ASSERT_TRUE(result);
+  EXPECT_EQ(result->exit_code, 127);
 }
 
 }  // namespace
