@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 #include <vector>
 
@@ -19,43 +20,70 @@ cv::Mat disk(double radius_mm, double spacing_x, double spacing_y) {
   return cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
 }
 
-// Labels 6-connected components of `mask` (non-zero voxels) and keeps the largest one. A
-// breadth-first flood fill written here because OpenCV's connected components are 2D only.
-// Returns the number of components found.
+std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
+  while (parent[x] != x) {
+    parent[x] = parent[parent[x]];
+    x = parent[x];
+  }
+  return x;
+}
+
+// Keeps the largest 6-connected component of `mask` (non-zero voxels). OpenCV labels each
+// slice (4-connected in-plane, with areas; slices in parallel), then labels that overlap
+// between neighbouring slices are joined by union-find. Replaces a voxel-by-voxel 3D flood
+// fill that took 14 % of a whole bone conversion (perf, abdomen). Returns the number of
+// components found.
 std::size_t keep_largest_component(std::vector<std::uint8_t>& mask, const core::VolumeSize& size) {
-  const std::int64_t nx = size.nx, ny = size.ny, nz = size.nz;
-  std::vector<std::int32_t> label(mask.size(), 0);
-  std::vector<std::int64_t> queue;
-  std::int32_t components = 0, best = 0;
-  std::int64_t best_size = 0;
-  for (std::int64_t start = 0; start < static_cast<std::int64_t>(mask.size()); ++start) {
-    if (!mask[start] || label[start] != 0) continue;
-    const std::int32_t current = ++components;
-    std::int64_t count = 0;
-    queue.assign(1, start);
-    label[start] = current;
-    while (!queue.empty()) {
-      const std::int64_t v = queue.back();
-      queue.pop_back();
-      ++count;
-      const std::int64_t x = v % nx, y = (v / nx) % ny, z = v / (nx * ny);
-      const std::int64_t neighbours[6][2] = {{x > 0, v - 1},       {x + 1 < nx, v + 1},
-                                             {y > 0, v - nx},      {y + 1 < ny, v + nx},
-                                             {z > 0, v - nx * ny}, {z + 1 < nz, v + nx * ny}};
-      for (const auto& [inside, n] : neighbours) {
-        if (inside && mask[n] && label[n] == 0) {
-          label[n] = current;
-          queue.push_back(n);
-        }
-      }
-    }
-    if (count > best_size) {
-      best_size = count;
-      best = current;
+  const int rows = static_cast<int>(size.ny), cols = static_cast<int>(size.nx);
+  const std::size_t slice_voxels = static_cast<std::size_t>(size.nx * size.ny);
+  const auto nz = static_cast<std::size_t>(size.nz);
+  std::vector<cv::Mat> labels(nz);
+  std::vector<cv::Mat> stats(nz);
+  tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
+    const cv::Mat slice(rows, cols, CV_8U, mask.data() + k * slice_voxels);
+    cv::Mat centroids;
+    cv::connectedComponentsWithStats(slice, labels[k], stats[k], centroids, 4, CV_32S);
+  });
+  // Global label of slice k's label l (l >= 1): offset[k] + l - 1.
+  std::vector<std::uint32_t> offset(nz + 1, 0);
+  for (std::size_t k = 0; k < nz; ++k) offset[k + 1] = offset[k] + std::uint32_t(stats[k].rows - 1);
+  std::vector<std::uint32_t> parent(offset[nz]);
+  std::iota(parent.begin(), parent.end(), 0u);
+  for (std::size_t k = 0; k + 1 < nz; ++k) {
+    const std::int32_t* below = labels[k].ptr<std::int32_t>();
+    const std::int32_t* above = labels[k + 1].ptr<std::int32_t>();
+    for (std::size_t p = 0; p < slice_voxels; ++p) {
+      if (below[p] == 0 || above[p] == 0) continue;
+      const std::uint32_t a = find_root(parent, offset[k] + std::uint32_t(below[p]) - 1);
+      const std::uint32_t b = find_root(parent, offset[k + 1] + std::uint32_t(above[p]) - 1);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
     }
   }
-  for (std::size_t v = 0; v < mask.size(); ++v) mask[v] = label[v] == best && best != 0;
-  return static_cast<std::size_t>(components);
+  if (parent.empty()) return 0;  // nothing in the mask
+  std::vector<std::uint64_t> volume(parent.size(), 0);
+  std::size_t components = 0;
+  for (std::size_t k = 0; k < nz; ++k) {
+    for (int l = 1; l < stats[k].rows; ++l) {
+      const std::uint32_t global = offset[k] + std::uint32_t(l) - 1;
+      const std::uint32_t root = find_root(parent, global);
+      if (root == global) ++components;
+      volume[root] += std::uint64_t(stats[k].at<std::int32_t>(l, cv::CC_STAT_AREA));
+    }
+  }
+  std::uint32_t best = 0;
+  for (std::uint32_t g = 0; g < volume.size(); ++g) {
+    if (volume[g] > volume[best]) best = g;
+  }
+  // Roots flattened first, so the writing pass only reads (and runs in parallel).
+  for (std::uint32_t g = 0; g < parent.size(); ++g) parent[g] = find_root(parent, g);
+  tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
+    const std::int32_t* label = labels[k].ptr<std::int32_t>();
+    std::uint8_t* out = mask.data() + k * slice_voxels;
+    for (std::size_t p = 0; p < slice_voxels; ++p) {
+      out[p] = label[p] != 0 && parent[offset[k] + std::uint32_t(label[p]) - 1] == best;
+    }
+  });
+  return components;
 }
 
 }  // namespace
