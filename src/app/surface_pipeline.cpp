@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include "core/marching_cubes.h"
 #include "core/type_merging.h"
@@ -23,26 +24,35 @@ std::string number(double value) {
   return text;
 }
 
+using Details = std::vector<std::pair<std::string, std::string>>;
+
+// What a step says about itself; `check` when the step already checked its result (the
+// src/mesh steps do), so it is not computed twice.
+struct StepOutput {
+  Details details;
+  std::optional<core::MeshCheck> check;
+};
+
 // Runs one step, then records its time, triangle count and the full validity check.
 template <typename Step>
 void run_step(SurfaceResult& result, const std::string& name, Step&& step) {
   const auto start = Clock::now();
   StepSummary summary;
   summary.step = name;
-  summary.details = step(result.mesh);
+  StepOutput output = step(result.mesh);
+  summary.details = std::move(output.details);
   summary.milliseconds = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   summary.triangles = result.mesh.triangles.size();
-  summary.check = core::check_mesh(result.mesh);
+  summary.check = output.check ? *output.check : core::check_mesh(result.mesh);
   result.steps.push_back(std::move(summary));
 }
 
-using Details = std::vector<std::pair<std::string, std::string>>;
-
-Details component_details(const mesh::ComponentReport& report) {
-  return {{"components_before", std::to_string(report.components_before)},
-          {"components_after", std::to_string(report.components_after)},
-          {"removed_components", std::to_string(report.removed_components)},
-          {"removed_volume_mm3", number(report.removed_volume)}};
+StepOutput component_details(const mesh::ComponentReport& report) {
+  return {{{"components_before", std::to_string(report.components_before)},
+           {"components_after", std::to_string(report.components_after)},
+           {"removed_components", std::to_string(report.removed_components)},
+           {"removed_volume_mm3", number(report.removed_volume)}},
+          report.validity.check};
 }
 
 }  // namespace
@@ -78,7 +88,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       mesh = core::extract_isosurface(source, iso, extract);
     }
     core::to_patient(mesh, volume.geometry());
-    return details;
+    return StepOutput{details, std::nullopt};
   });
 
   const FinishOptions& finish = options.finish;
@@ -106,8 +116,9 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       mesh::SmoothingOptions smoothing;
       smoothing.iterations = finish.smooth_iterations;
       const auto report = mesh::smooth_mesh(mesh, smoothing);
-      return Details{{"iterations", std::to_string(report.iterations)},
-                     {"relative_volume_change", number(report.relative_volume_change)}};
+      return StepOutput{{{"iterations", std::to_string(report.iterations)},
+                         {"relative_volume_change", number(report.relative_volume_change)}},
+                        report.validity.check};
     });
   }
   if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
@@ -117,9 +128,10 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       if (finish.max_error_mm > 0) decimation.max_error = finish.max_error_mm;
       const auto report = mesh::decimate_mesh(mesh, decimation);
       for (const auto& w : report.warnings) result.warnings.push_back("decimation: " + w);
-      return Details{{"triangles_before", std::to_string(report.triangles_before)},
-                     {"max_error_mm", number(report.max_error)},
-                     {"reached_target", report.reached_target ? "yes" : "no"}};
+      return StepOutput{{{"triangles_before", std::to_string(report.triangles_before)},
+                         {"max_error_mm", number(report.max_error)},
+                         {"reached_target", report.reached_target ? "yes" : "no"}},
+                        report.validity.check};
     });
   }
   if (!result.steps.back().check.closed_manifold()) {

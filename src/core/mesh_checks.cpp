@@ -34,7 +34,42 @@ class UnionFind {
 
 // A vertex is manifold when its link (the edges opposite it in its triangles) is one simple
 // path or one simple cycle: every link vertex has degree at most 2 and the link is connected.
+bool link_is_disk_or_fan_general(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link);
+
 bool link_is_disk_or_fan(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link) {
+  // The common case first, without allocating: a vertex inside a closed, consistently oriented
+  // surface has a link that is one directed cycle. Following "first → second" from link[0]
+  // with distinct firsts returns to the start after exactly link.size() steps only then.
+  if (link.size() <= 32) {
+    bool distinct = true;
+    for (std::size_t i = 0; i < link.size() && distinct; ++i) {
+      for (std::size_t j = i + 1; j < link.size(); ++j) {
+        if (link[i].first == link[j].first) {
+          distinct = false;
+          break;
+        }
+      }
+    }
+    if (distinct) {
+      const std::uint32_t start = link[0].first;
+      std::uint32_t at = start;
+      std::size_t steps = 0;
+      while (steps <= link.size()) {
+        std::size_t e = 0;
+        while (e < link.size() && link[e].first != at) ++e;
+        if (e == link.size()) break;
+        at = link[e].second;
+        ++steps;
+        if (at == start) break;
+      }
+      if (at == start && steps == link.size()) return true;
+    }
+  }
+  return link_is_disk_or_fan_general(link);
+}
+
+// Any link: sorted ends for the degrees, union-find for connectivity. The oracle uses only this.
+bool link_is_disk_or_fan_general(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link) {
   std::vector<std::uint32_t> ends;
   ends.reserve(link.size() * 2);
   for (const auto& [a, b] : link) {
@@ -215,7 +250,7 @@ MeshCheck check_mesh_by_sorting(const TriangleMesh& mesh) {
   for (std::size_t v = 0; v < n; ++v) {
     if (links[v].empty()) continue;
     ++check.vertices;
-    if (!link_is_disk_or_fan(links[v])) ++check.non_manifold_vertices;
+    if (!link_is_disk_or_fan_general(links[v])) ++check.non_manifold_vertices;
     if (components.find(v) == v) ++check.components;
   }
 
