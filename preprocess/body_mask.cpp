@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numeric>
 #include <stdexcept>
 #include <vector>
@@ -148,20 +149,63 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
     cv::bitwise_and(grown, slice_mat(tissue, k), body_slice);
   });
 
-  // 4. Keep the body and its partial-volume edge; clear whatever else is denser than air.
-  std::vector<std::int64_t> cleared_in_slice(static_cast<std::size_t>(size.nz), 0);
+  // 4. Keep the body and its partial-volume edge (into `seed`, free now); clear whatever else
+  //    is denser than air — unless that would clear much of the tissue: then the body was
+  //    not found (a dry skull phantom is a thin shell the opening breaks up, and its holder
+  //    became the largest component), and the volume is left as it is, with a warning.
+  std::vector<std::uint8_t>& keep = seed;
+  std::vector<std::int64_t> tissue_in_slice(static_cast<std::size_t>(size.nz), 0);
+  std::vector<std::int64_t> tissue_out_in_slice(static_cast<std::size_t>(size.nz), 0);
   const cv::Mat edge = options.edge_mm > 0 ? disk(options.edge_mm, sx, sy) : cv::Mat();
   each_slice([&](std::int64_t k) {
     cv::Mat near = slice_mat(body, k).clone();
     for (std::int64_t n : {k - 1, k + 1}) {
       if (n >= 0 && n < size.nz) near = cv::max(near, slice_mat(body, n));
     }
-    cv::Mat keep = near;
-    if (!edge.empty()) cv::dilate(near, keep, edge);
+    cv::Mat keep_slice = slice_mat(keep, k);
+    if (edge.empty()) {
+      near.copyTo(keep_slice);
+    } else {
+      cv::dilate(near, keep_slice, edge);
+    }
+    const std::uint8_t* t = tissue.data() + k * std::int64_t(slice_voxels);
+    const std::uint8_t* kept = keep.data() + k * std::int64_t(slice_voxels);
+    std::int64_t all = 0, out = 0;
+    for (std::size_t p = 0; p < slice_voxels; ++p) {
+      all += t[p] != 0;
+      out += t[p] != 0 && kept[p] == 0;
+    }
+    tissue_in_slice[static_cast<std::size_t>(k)] = all;
+    tissue_out_in_slice[static_cast<std::size_t>(k)] = out;
+  });
+  std::int64_t tissue_total = 0, tissue_outside = 0;
+  for (std::size_t k = 0; k < tissue_in_slice.size(); ++k) {
+    tissue_total += tissue_in_slice[k];
+    tissue_outside += tissue_out_in_slice[k];
+  }
+  const double outside_fraction =
+      tissue_total > 0 ? double(tissue_outside) / double(tissue_total) : 0.0;
+  record.parameters.emplace_back("components", std::to_string(components));
+  record.parameters.emplace_back("tissue_outside_fraction", detail::format_number(outside_fraction));
+  if (outside_fraction > options.max_tissue_outside_fraction) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "table removal skipped: %.0f %% of the tissue lies outside the largest "
+                  "component, so it is not a body lying on a table (a phantom?); use --crop-mm "
+                  "to leave out a holder",
+                  100.0 * outside_fraction);
+    record.warnings.push_back(text);
+    record.parameters.emplace_back("cleared_voxels", "0");
+    record.description = text;
+    return {std::move(volume), std::move(record)};
+  }
+  std::vector<std::int64_t> cleared_in_slice(static_cast<std::size_t>(size.nz), 0);
+  each_slice([&](std::int64_t k) {
+    const std::uint8_t* kept = keep.data() + k * std::int64_t(slice_voxels);
     float* values = volume.slice(k);
     std::int64_t cleared = 0;
     for (std::size_t p = 0; p < slice_voxels; ++p) {
-      if (values[p] > options.air_threshold_hu && keep.data[p] == 0) {
+      if (values[p] > options.air_threshold_hu && kept[p] == 0) {
         values[p] = -1000.0f;
         ++cleared;
       }
@@ -170,11 +214,12 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
   });
   std::int64_t cleared = 0;
   for (std::int64_t c : cleared_in_slice) cleared += c;
-  record.parameters.emplace_back("components", std::to_string(components));
   record.parameters.emplace_back("cleared_voxels", std::to_string(cleared));
+  char text[160];
+  std::snprintf(text, sizeof text, "%.1f %% of the tissue", 100.0 * outside_fraction);
   record.description = "kept the largest of " + std::to_string(components) +
                        " tissue components (the body) and its edge; " + std::to_string(cleared) +
-                       " voxels outside it set to air";
+                       " voxels outside it set to air (" + text + ")";
   return {std::move(volume), std::move(record)};
 }
 

@@ -36,6 +36,9 @@ struct BodyMaskOptions {
   double opening_mm = 5;           // > 0; radius of the in-plane opening that cuts contacts
   double restore_mm = 3;           // ≥ 0; growth beyond the opening radius that restores thin parts
   double edge_mm = 2;              // ≥ 0; partial-volume edge kept around the body
+  // Above this share of the tissue outside the body, the "body" is not one (a phantom, an
+  // object scan): nothing is cleared and a warning says so.
+  double max_tissue_outside_fraction = 0.15;
 };
 
 // Voxels outside the body become −1000 HU. The record says how many voxels were cleared and

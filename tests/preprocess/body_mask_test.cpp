@@ -96,6 +96,29 @@ TEST(BodyMask, ClearsAPadWiderThanTheBodyDownToAThinFringe) {
   EXPECT_LT(left * 4, pad) << left << " of " << pad << " pad voxels left";
 }
 
+// The phantom_study case: a dry skull (a thin shell with air inside) on a solid holder. The
+// opening breaks the shell, the holder becomes the largest component, and clearing the rest
+// would delete the skull: the step must notice and leave the volume alone.
+TEST(BodyMask, AThinShellOnAHolderIsLeftAloneWithAWarning) {
+  core::IndexToPatient geometry;
+  core::Volume input({80, 80, 40}, geometry);
+  for (std::int64_t k = 0; k < 40; ++k) {
+    for (std::int64_t j = 0; j < 80; ++j) {
+      for (std::int64_t i = 0; i < 80; ++i) {
+        const double r = std::hypot(double(i) - 40, double(j) - 30, double(k) - 20);
+        float hu = -1000;
+        if (r >= 16 && r < 19) hu = 1200;                     // the shell, 3 mm
+        if (j >= 56 && j < 70 && i >= 20 && i < 60) hu = 60;  // the holder block
+        input.at(i, j, k) = hu;
+      }
+    }
+  }
+  const StepResult result = remove_outside_body(input);
+  EXPECT_EQ(result.volume.samples(), input.samples());
+  ASSERT_EQ(result.record.warnings.size(), 1u);
+  EXPECT_NE(result.record.warnings[0].find("table removal skipped"), std::string::npos);
+}
+
 TEST(BodyMask, EmptyVolumeIsReturnedWithAWarning) {
   core::Volume air({10, 10, 4}, {});
   for (float& v : air.samples()) v = -1000;
