@@ -8,7 +8,7 @@
 
 namespace typemerge::app {
 
-// Peak memory of converting a series of `voxels` voxels: measured 503–515 MB peak RSS for the
+// Peak memory of converting a series of `voxels` voxels: measured 393–515 MB peak RSS for the
 // abdomen (35 M voxels, bone and skin; `/usr/bin/time -v typemerge convert`), i.e. about
 // 14 bytes a voxel (the HU volume, its table-removed copy and masks, the meshes) plus the
 // process itself; 16 bytes a voxel and 64 MiB leave a margin.
