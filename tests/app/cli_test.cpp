@@ -176,6 +176,47 @@ TEST(Cli, InfoOnThePhantomStudyNamesWhatItSkipped) {
 
 namespace {
 
+// The abdomen lies on a foam pad wider than the body (−700 to −300 HU) over a carbon table.
+// With the skin preset the surface is one closed shell of the body alone: no pad, no table
+// (with --keep-table it spans the whole 55 cm field of view).
+TEST(Cli, AbdomenSkinIsOneClosedShellWithoutTheTable) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  const fs::path out = fresh_dir("abdomen_skin");
+  const CommandRun converted = run("convert " + (data / "ct" / "abdomen").string() +
+                                   " --preset bone,skin -o " + out.string());
+  ASSERT_EQ(converted.exit_code, 0) << converted.out;
+  for (const char* name : {"bone", "skin"}) {
+    const CommandRun stats = run("stats --json " + (out / (std::string(name) + ".stl")).string());
+    ASSERT_EQ(stats.exit_code, 0) << stats.out;
+    const auto document = nlohmann::json::parse(stats.out);
+    EXPECT_TRUE(document["closed_manifold"].get<bool>()) << name;
+    if (std::string(name) == "skin") EXPECT_EQ(document["components"], 1);
+  }
+  // From the file itself: the width of the back, within 15 mm of the most posterior point
+  // (+y in LPS), is the body's (about 29 cm), not the pad's (53 cm).
+  const std::string bytes = [&] {
+    std::ifstream in(out / "skin.stl", std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }();
+  std::uint32_t count = 0;
+  std::memcpy(&count, bytes.data() + 80, 4);
+  ASSERT_EQ(bytes.size(), 84u + 50u * count);
+  std::vector<std::array<float, 3>> points(std::size_t{count} * 3);
+  float back = -1e9f;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    std::memcpy(points[i].data(), bytes.data() + 84 + 50 * (i / 3) + 12 + 12 * (i % 3), 12);
+    back = std::max(back, points[i][1]);
+  }
+  float lo = 1e9f, hi = -1e9f;
+  for (const auto& p : points) {
+    if (p[1] < back - 15.0f) continue;
+    lo = std::min(lo, p[0]);
+    hi = std::max(hi, p[0]);
+  }
+  EXPECT_LT(hi - lo, 350.0f);
+  EXPECT_GT(hi - lo, 150.0f);
+}
+
 TEST(Cli, ConvertWritesAClosedSurfaceInPatientSpaceThatStatsConfirms) {
   const fs::path dir = write_ball_series("convert");
   const fs::path out = fresh_dir("convert_out") / "ball.stl";
