@@ -2,6 +2,7 @@
 
 #include <Model/COM/NMR_DLLInterfaces.h>
 
+#include <cstdio>
 #include <stdexcept>
 #include <vector>
 
@@ -44,6 +45,28 @@ void check(HRESULT result, NMR::PLib3MFBase* context, const char* what) {
   throw std::runtime_error(message);
 }
 
+// A UUID from the mesh's bytes and a salt (FNV-1a, two 64-bit halves): lib3mf would draw
+// random ones, and outputs must be byte-identical across runs. Version nibble 8 (custom).
+std::string content_uuid(const core::TriangleMesh& mesh, std::uint64_t salt) {
+  auto fnv = [&](std::uint64_t hash) {
+    auto mix = [&hash](const void* data, std::size_t bytes) {
+      const auto* p = static_cast<const unsigned char*>(data);
+      for (std::size_t i = 0; i < bytes; ++i) hash = (hash ^ p[i]) * 1099511628211ull;
+    };
+    mix(mesh.positions.data(), mesh.positions.size() * sizeof(mesh.positions[0]));
+    mix(mesh.triangles.data(), mesh.triangles.size() * sizeof(mesh.triangles[0]));
+    return hash;
+  };
+  const std::uint64_t high = fnv(14695981039346656037ull ^ salt);
+  const std::uint64_t low = fnv(14695981039346656037ull ^ (salt * 0x9E3779B97F4A7C15ull + 1));
+  char text[40];
+  std::snprintf(text, sizeof text, "%08x-%04x-%04x-%04x-%012llx", unsigned(high >> 32),
+                unsigned((high >> 16) & 0xFFFF), unsigned(0x8000 | (high & 0x0FFF)),
+                unsigned(0x8000 | ((low >> 48) & 0x3FFF)),
+                static_cast<unsigned long long>(low & 0xFFFFFFFFFFFFull));
+  return text;
+}
+
 }  // namespace
 
 void write_3mf(const core::TriangleMesh& mesh, const std::filesystem::path& path,
@@ -73,6 +96,11 @@ void write_3mf(const core::TriangleMesh& mesh, const std::filesystem::path& path
         o, "setting the geometry");
   check(NMR::lib3mf_model_addbuilditem(m, o, nullptr, item.out<NMR::PLib3MFModelBuildItem>()), m,
         "adding the build item");
+  check(NMR::lib3mf_object_setuuidutf8(o, content_uuid(mesh, 1).c_str()), o, "setting a UUID");
+  check(NMR::lib3mf_builditem_setuuidutf8(item.get<NMR::PLib3MFModelBuildItem>(),
+                                          content_uuid(mesh, 2).c_str()),
+        m, "setting a UUID");
+  check(NMR::lib3mf_model_setbuilduuidutf8(m, content_uuid(mesh, 3).c_str()), m, "setting a UUID");
   check(NMR::lib3mf_model_querywriter(m, "3mf", writer.out<NMR::PLib3MFModelWriter>()), m,
         "creating the writer");
   auto* w = writer.get<NMR::PLib3MFModelWriter>();
