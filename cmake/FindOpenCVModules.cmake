@@ -1,10 +1,10 @@
 # Finds the few OpenCV modules the project uses from Debian's split packages
-# (libopencv-core-dev, -imgproc-dev, -photo-dev, -imgcodecs-dev). Debian ships OpenCV's CMake
+# (libopencv-core-dev, -imgproc-dev, -photo-dev). Debian ships OpenCV's CMake
 # config only in the libopencv-dev meta package, which drags in some 140 unrelated packages.
-# Defines OpenCV::core, OpenCV::imgproc, OpenCV::photo, OpenCV::imgcodecs.
+# Defines OpenCV::core, OpenCV::imgproc, OpenCV::photo.
 find_path(OpenCVModules_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4)
 set(_found TRUE)
-foreach(_module core imgproc photo imgcodecs)
+foreach(_module core imgproc photo)
   find_library(OpenCVModules_${_module}_LIBRARY opencv_${_module})
   if(NOT OpenCVModules_${_module}_LIBRARY)
     set(_found FALSE)

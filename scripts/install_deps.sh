@@ -7,7 +7,8 @@ packages=(
   build-essential cmake ninja-build ccache pkg-config
   libdcmtk-dev            # DICOM parsing and the JPEG / JPEG-LS / RLE codecs
   libopenjp2-7-dev        # JPEG 2000 decoding, which Debian's DCMTK lacks
-  libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
+  libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev
+  libpng-dev              # preview PNGs (not OpenCV imgcodecs: it drags GDAL and 138 libraries)
   libopenmesh-dev         # mesh finishing: components, smoothing, decimation
   libcli11-dev            # command line
   nlohmann-json3-dev      # reports and `info --json`
