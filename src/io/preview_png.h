@@ -2,7 +2,7 @@
 //
 // Two orthographic views side by side: anterior (the patient's face, patient's left on the
 // viewer's right, head up) and left lateral. A z-buffered software rasteriser: no display,
-// no GPU and no VTK needed on a server; OpenCV only encodes the PNG.
+// no GPU and no VTK needed on a server; OpenCV holds the image, libpng encodes it.
 #pragma once
 
 #include <filesystem>
