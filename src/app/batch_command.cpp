@@ -284,7 +284,9 @@ class BatchRun {
 
  private:
   void prepare(const std::vector<StudyPlan>& plans);
-  void start(PendingStudy study);
+  bool start_study(PendingStudy study, std::uint64_t estimate, const fs::path& my_work,
+                   std::vector<RunningStudy>& running);
+  void stop_all(std::vector<RunningStudy>& running);
   void finish(RunningStudy& running, const ChildResult& result);
   void record(StudyOutcome outcome, std::uint64_t voxels);
   std::vector<std::string> child_arguments(const StudyPlan& plan, const fs::path& work) const;
@@ -459,25 +461,9 @@ int BatchRun::run() {
     while (!queue_.empty() && running.size() < options_.jobs) {
       const std::uint64_t estimate = conversion_memory_estimate(queue_.front().plan->voxels);
       if (!running.empty() && reserved + estimate > budget_) break;
-      RunningStudy r;
-      r.study = std::move(queue_.front());
+      PendingStudy next = std::move(queue_.front());
       queue_.pop_front();
-      r.estimate = estimate;
-      r.work = my_work / r.study.plan->study_id;
-      fs::remove_all(r.work, error);
-      fs::create_directories(r.work / "out", error);
-      if (error) throw CommandError{kExitOutputFailed, "cannot write in " + r.work.string()};
-      // The child limits itself (--max-memory): it refuses a series whose estimate exceeds
-      // the budget before loading it, and its address space is bounded.
-      ChildSpec spec{child_arguments(*r.study.plan, r.work), r.work / "output.txt"};
-      r.start = Clock::now();
-      r.child = std::make_unique<ChildProcess>(spec);
-      events_.write("study_start", {{"study", r.study.plan->study_id},
-                                    {"output", r.study.plan->output_name},
-                                    {"series", r.study.plan->series_id},
-                                    {"memory_estimate_mb", estimate >> 20}});
-      reserved += estimate;
-      running.push_back(std::move(r));
+      if (start_study(std::move(next), estimate, my_work, running)) reserved += estimate;
       changed = true;
     }
     for (auto it = running.begin(); it != running.end();) {
@@ -500,23 +486,7 @@ int BatchRun::run() {
     if (!changed) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 
-  if (g_interrupted) {
-    for (RunningStudy& r : running) {
-      r.child->kill();
-      while (!r.child->poll()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-      StudyOutcome outcome = outcome_base(*r.study.plan);
-      outcome.status = StudyStatus::interrupted;
-      outcome.reason = "interrupted";
-      outcomes_.push_back(outcome);
-    }
-    for (const PendingStudy& s : queue_) {
-      StudyOutcome outcome = outcome_base(*s.plan);
-      outcome.status = StudyStatus::interrupted;
-      outcome.reason = "interrupted";
-      outcomes_.push_back(outcome);
-    }
-    running.clear();
-  }
+  if (g_interrupted) stop_all(running);
   progress_->clear();
   fs::remove_all(my_work, error);
 
@@ -549,6 +519,59 @@ int BatchRun::run() {
                               {"seconds", std::round(seconds_since(start_) * 1000) / 1000},
                               {"exit_code", code}});
   return code;
+}
+
+// Starts the study's conversion in a child process; false (and the study recorded as failed)
+// when no process could be started.
+bool BatchRun::start_study(PendingStudy study, std::uint64_t estimate, const fs::path& my_work,
+                           std::vector<RunningStudy>& running) {
+  RunningStudy r;
+  r.study = std::move(study);
+  r.estimate = estimate;
+  r.work = my_work / r.study.plan->study_id;
+  std::error_code error;
+  fs::remove_all(r.work, error);
+  fs::create_directories(r.work / "out", error);
+  if (error) throw CommandError{kExitOutputFailed, "cannot write in " + r.work.string()};
+  // The child limits itself (--max-memory): it refuses a series whose estimate exceeds the
+  // budget before loading it, and its address space is bounded.
+  ChildSpec spec{child_arguments(*r.study.plan, r.work), r.work / "output.txt"};
+  r.start = Clock::now();
+  try {
+    r.child = std::make_unique<ChildProcess>(spec);
+  } catch (const std::runtime_error& e) {
+    StudyOutcome outcome = outcome_base(*r.study.plan);
+    outcome.reason = e.what();
+    record(std::move(outcome), r.study.plan->voxels);
+    return false;
+  }
+  events_.write("study_start", {{"study", r.study.plan->study_id},
+                                {"output", r.study.plan->output_name},
+                                {"series", r.study.plan->series_id},
+                                {"memory_estimate_mb", estimate >> 20}});
+  running.push_back(std::move(r));
+  return true;
+}
+
+// Ctrl-C, SIGTERM, SIGHUP: the running children are killed (their work folders go with the
+// batch's), and they and the queued studies are recorded as interrupted.
+void BatchRun::stop_all(std::vector<RunningStudy>& running) {
+  for (RunningStudy& r : running) {
+    r.child->kill();
+    while (!r.child->poll()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    StudyOutcome outcome = outcome_base(*r.study.plan);
+    outcome.status = StudyStatus::interrupted;
+    outcome.reason = "interrupted";
+    outcomes_.push_back(outcome);
+  }
+  running.clear();
+  for (const PendingStudy& s : queue_) {
+    StudyOutcome outcome = outcome_base(*s.plan);
+    outcome.status = StudyStatus::interrupted;
+    outcome.reason = "interrupted";
+    outcomes_.push_back(outcome);
+  }
+  queue_.clear();
 }
 
 void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
