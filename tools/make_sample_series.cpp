@@ -257,19 +257,22 @@ std::vector<ctw::CtSliceSpec> make_specs(const std::vector<std::int32_t>& stored
   layout.transfer_syntax = ctw::TransferSyntax::explicit_little;
 
   std::vector<ctw::CtSliceSpec> specs = ctw::make_axial_series(layout);
+  // std::string values (not char pointers): GCC 12 at -O3 raises a false -Wrestrict on
+  // string assignment from a literal here (GCC bug 105329).
+  using namespace std::string_literals;
   for (ctw::CtSliceSpec& spec : specs) {
-    spec.patient_name = "Phantom^Sample";
-    spec.patient_id = "SAMPLE";
-    spec.patient_birth_date = "";  // type 2: present, empty — there is no patient
-    spec.patient_sex = "O";
-    spec.study_date = "20000101";  // fixed and obviously not a real acquisition date
-    spec.study_time = "000000";
-    spec.study_description = "typemerge sample series";
-    spec.manufacturer = "typemerge make_sample_series";
-    spec.convolution_kernel = "STANDARD";
-    spec.rescale_type = "HU";
-    spec.window_center = "40";
-    spec.window_width = "400";
+    spec.patient_name = "Phantom^Sample"s;
+    spec.patient_id = "SAMPLE"s;
+    spec.patient_birth_date = ""s;  // type 2: present, empty — there is no patient
+    spec.patient_sex = "O"s;
+    spec.study_date = "20000101"s;  // fixed and obviously not a real acquisition date
+    spec.study_time = "000000"s;
+    spec.study_description = "typemerge sample series"s;
+    spec.manufacturer = "typemerge make_sample_series"s;
+    spec.convolution_kernel = "STANDARD"s;
+    spec.rescale_type = "HU"s;
+    spec.window_center = "40"s;
+    spec.window_width = "400"s;
   }
   return specs;
 }

@@ -92,12 +92,14 @@ std::string csv_text(const std::vector<StudyOutcome>& outcomes) {
   for (const StudyOutcome& o : outcomes) {
     std::string surfaces, files, triangles, volumes, closed;
     for (const SurfaceOutcome& s : o.surfaces) {
-      const char* sep = surfaces.empty() ? "" : ";";
-      surfaces += sep + s.surface;
-      files += sep + s.file;
-      triangles += sep + std::to_string(s.triangles);
-      volumes += sep + number(s.volume_ml, "%.3f");
-      closed += sep + std::string(s.closed_manifold ? "yes" : "no");
+      if (!surfaces.empty()) {
+        for (std::string* list : {&surfaces, &files, &triangles, &volumes, &closed}) *list += ';';
+      }
+      surfaces += s.surface;
+      files += s.file;
+      triangles += std::to_string(s.triangles);
+      volumes += number(s.volume_ml, "%.3f");
+      closed += s.closed_manifold ? "yes" : "no";
     }
     for (const std::string& field :
          {o.input, o.study, o.series, o.output_name, std::string(status_name(o.status)), o.reason,
