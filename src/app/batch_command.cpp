@@ -431,7 +431,7 @@ int BatchRun::run() {
   std::size_t skipped = 0, refused = 0;
   for (const StudyOutcome& o : outcomes_) (o.status == StudyStatus::up_to_date ? skipped : refused)++;
   // ROOT itself is not repeated: archive folder names can spell patient names.
-  log_ << "batch: " << plans.size() << " studies found"
+  log_ << "batch: " << plans.size() << (plans.size() == 1 ? " study found" : " studies found")
        << (shard_.active() ? ", shard " + shard_.text : std::string()) << "; " << queue_.size()
        << " to convert, " << skipped << " up to date, " << refused << " without a usable series\n"
        << std::flush;
