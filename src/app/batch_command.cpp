@@ -361,9 +361,10 @@ void BatchRun::prepare(const std::vector<StudyPlan>& plans) {
     try {
       study.key = study_key(plan.files, parameters_,
                             study.previous ? study.previous->stamps : std::vector<FileStamp>{});
-    } catch (const std::runtime_error& error) {
+    } catch (const std::runtime_error&) {
+      // Not the path: the summary never names input folders unmasked.
       StudyOutcome outcome = outcome_base(plan);
-      outcome.reason = error.what();
+      outcome.reason = "a file of the study could not be read (removed or unreadable meanwhile)";
       outcomes_.push_back(outcome);
       continue;
     }
