@@ -287,6 +287,7 @@ class BatchRun {
   bool start_study(PendingStudy study, std::uint64_t estimate, const fs::path& my_work,
                    std::vector<RunningStudy>& running);
   void stop_all(std::vector<RunningStudy>& running);
+  std::string masked_paths(std::string text, const StudyPlan& plan) const;
   void finish(RunningStudy& running, const ChildResult& result);
   void record(StudyOutcome outcome, std::uint64_t voxels);
   std::vector<std::string> child_arguments(const StudyPlan& plan, const fs::path& work) const;
@@ -554,6 +555,17 @@ bool BatchRun::start_study(PendingStudy study, std::uint64_t estimate, const fs:
   return true;
 }
 
+// convert's messages may name the folder it was given; the summary shows it masked (folder
+// names can spell patient names) and relative to ROOT.
+std::string BatchRun::masked_paths(std::string text, const StudyPlan& plan) const {
+  const std::string input = (root_is_folder_ ? root_ / plan.folder : root_).string();
+  for (std::size_t at = text.find(input); at != std::string::npos;
+       at = text.find(input, at + plan.shown_folder.size())) {
+    text.replace(at, input.size(), plan.shown_folder);
+  }
+  return text;
+}
+
 // Ctrl-C, SIGTERM, SIGHUP: the running children are killed (their work folders go with the
 // batch's), and they and the queued studies are recorded as interrupted.
 void BatchRun::stop_all(std::vector<RunningStudy>& running) {
@@ -588,7 +600,7 @@ void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
                   options_.timeout_seconds);
     outcome.reason = text;
   } else if (!result.exited || result.exit_code != 0) {
-    outcome.reason = child_reason(r.work / "output.txt", result);
+    outcome.reason = masked_paths(child_reason(r.work / "output.txt", result), plan);
     if (outcome.reason == "out of memory") {
       outcome.reason += " (limit " + format_megabytes(budget_) + ", --max-memory)";
     }
