@@ -243,17 +243,24 @@ std::string child_reason(const fs::path& output_file, const ChildResult& result)
   return reason;
 }
 
-std::vector<SurfaceOutcome> surfaces_of_report(const fs::path& report, const std::string& name) {
+// The surfaces and every warning of convert's report (loading, preprocessing, surfaces).
+void read_report(const fs::path& report, const std::string& name, StudyOutcome& outcome) {
   std::ifstream in(report);
   const ordered_json json = ordered_json::parse(in);
-  std::vector<SurfaceOutcome> surfaces;
-  for (const auto& s : json.at("surfaces")) {
-    surfaces.push_back({s.at("name").get<std::string>(),
-                        name + "/" + s.at("output").get<std::string>(),
-                        s.at("triangles").get<std::uint64_t>(), s.at("volume_ml").get<double>(),
-                        s.at("validity").at("closed_manifold").get<bool>()});
+  for (const auto& w : json.at("input").at("warnings")) outcome.warnings.push_back(w.get<std::string>());
+  for (const auto& step : json.at("preprocess")) {
+    for (const auto& w : step.at("warnings")) outcome.warnings.push_back(w.get<std::string>());
   }
-  return surfaces;
+  for (const auto& s : json.at("surfaces")) {
+    outcome.surfaces.push_back({s.at("name").get<std::string>(),
+                                name + "/" + s.at("output").get<std::string>(),
+                                s.at("triangles").get<std::uint64_t>(),
+                                s.at("volume_ml").get<double>(),
+                                s.at("validity").at("closed_manifold").get<bool>()});
+    for (const auto& w : s.at("warnings")) {
+      outcome.warnings.push_back(s.at("name").get<std::string>() + ": " + w.get<std::string>());
+    }
+  }
 }
 
 // Work folders of batches on this host whose process is gone (killed) are removed; those of
@@ -335,6 +342,7 @@ void BatchRun::record(StudyOutcome outcome, std::uint64_t voxels) {
     line += ", " + s.surface + " " + std::to_string(s.triangles) + " triangles";
   }
   if (!outcome.reason.empty()) line += ": " + outcome.reason;
+  for (const std::string& w : outcome.warnings) line += "\n    warning: " + w;
   progress_->finished(line, voxels);
   ordered_json surfaces = ordered_json::array();
   for (const SurfaceOutcome& s : outcome.surfaces) {
@@ -606,7 +614,8 @@ void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
     }
   } else {
     try {
-      outcome.surfaces = surfaces_of_report(r.work / "report.json", plan.output_name);
+      read_report(r.work / "report.json", plan.output_name, outcome);
+      for (std::string& w : outcome.warnings) w = masked_paths(std::move(w), plan);
       // Outputs move into place file by file (rename: atomic), then the record is written: a
       // batch killed in between has no record and converts the study again.
       const fs::path destination = out_ / plan.output_name;
@@ -644,6 +653,7 @@ void BatchRun::finish(RunningStudy& r, const ChildResult& result) {
     } catch (const std::exception& e) {
       outcome.status = StudyStatus::failed;
       outcome.surfaces.clear();
+      outcome.warnings.clear();
       outcome.reason = std::string("could not collect the outputs: ") + e.what();
     }
   }

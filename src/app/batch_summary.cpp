@@ -44,6 +44,7 @@ ordered_json to_json(const StudyOutcome& o) {
           {"status", status_name(o.status)},
           {"reason", o.reason},
           {"surfaces", surfaces},
+          {"warnings", o.warnings},
           {"seconds", rounded(o.seconds, 0.001)},
           {"cpu_seconds", rounded(o.cpu_seconds, 0.001)},
           {"peak_memory_mb", rounded(o.peak_memory_mb, 0.1)}};
@@ -62,6 +63,7 @@ StudyOutcome from_json(const ordered_json& j) {
                           s.at("triangles").get<std::uint64_t>(), s.at("volume_ml").get<double>(),
                           s.at("closed_manifold").get<bool>()});
   }
+  if (j.contains("warnings")) o.warnings = j.at("warnings").get<std::vector<std::string>>();
   o.seconds = j.at("seconds").get<double>();
   o.cpu_seconds = j.at("cpu_seconds").get<double>();
   o.peak_memory_mb = j.at("peak_memory_mb").get<double>();
@@ -88,7 +90,7 @@ std::string number(double value, const char* format) {
 std::string csv_text(const std::vector<StudyOutcome>& outcomes) {
   std::string text =
       "input,study,series,output,status,reason,surfaces,files,triangles,volume_ml,"
-      "closed_manifold,seconds,cpu_seconds,peak_memory_mb\n";
+      "closed_manifold,warnings,seconds,cpu_seconds,peak_memory_mb\n";
   for (const StudyOutcome& o : outcomes) {
     std::string surfaces, files, triangles, volumes, closed;
     for (const SurfaceOutcome& s : o.surfaces) {
@@ -101,9 +103,14 @@ std::string csv_text(const std::vector<StudyOutcome>& outcomes) {
       volumes += number(s.volume_ml, "%.3f");
       closed += s.closed_manifold ? "yes" : "no";
     }
+    std::string warnings;
+    for (const std::string& w : o.warnings) {
+      if (!warnings.empty()) warnings += " | ";
+      warnings += w;
+    }
     for (const std::string& field :
          {o.input, o.study, o.series, o.output_name, std::string(status_name(o.status)), o.reason,
-          surfaces, files, triangles, volumes, closed}) {
+          surfaces, files, triangles, volumes, closed, warnings}) {
       text += csv_field(field) + ",";
     }
     text += number(o.seconds, "%.3f") + "," + number(o.cpu_seconds, "%.3f") + "," +

@@ -29,6 +29,7 @@ struct StudyOutcome {
   StudyStatus status = StudyStatus::failed;
   std::string reason;       // why it failed
   std::vector<SurfaceOutcome> surfaces;
+  std::vector<std::string> warnings;  // convert's (loading, preprocessing, surfaces)
   double seconds = 0;       // wall time of the conversion (0 when not run now)
   double cpu_seconds = 0;
   double peak_memory_mb = 0;

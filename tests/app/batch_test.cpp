@@ -145,6 +145,22 @@ TEST(Batch, ConvertsTheTreeChoosesSeriesAndReportsFailures) {
   }
 }
 
+// With --resample-spacing the study with a missing slice converts, and the summary carries
+// convert's warning about it (and the CSV a warnings column).
+TEST(Batch, WarningsOfEachStudyReachTheSummary) {
+  const fs::path out = fresh_dir("batch_warnings") / "out";
+  const auto run = run_cli(batch(out, "--resample-spacing"));
+  EXPECT_EQ(run.exit_code, 5) << run.err;  // study C still fails
+  const json summary = summary_of(out / "summary.json");
+  const json* d = result_for(summary, "siteB/studyD");
+  ASSERT_TRUE(d);
+  EXPECT_EQ((*d)["status"], "converted");
+  ASSERT_FALSE((*d)["warnings"].empty());
+  EXPECT_NE((*d)["warnings"].dump().find("resampl"), std::string::npos) << (*d)["warnings"];
+  EXPECT_NE(run.err.find("warning: "), std::string::npos);
+  EXPECT_NE(read_file_bytes(out / "summary.csv").find(",warnings,"), std::string::npos);
+}
+
 TEST(Batch, RerunSkipsWhatIsDoneAndRedoesAChangedStudy) {
   const fs::path work = fresh_dir("batch_rerun");
   const fs::path root = work / "root";
