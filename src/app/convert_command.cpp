@@ -10,6 +10,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <future>
+#include <system_error>
 #include <limits>
 #include <ostream>
 
@@ -357,10 +359,25 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                           {"max_error_mm", pipeline.finish.max_error_mm}};
 
   ordered_json surfaces = ordered_json::array();
+  // Every refusal before any work; then the surfaces, which are independent, are made
+  // concurrently (each with the core's threads too): one surface's serial steps (checks,
+  // finishing) overlap the other's extraction. Results are used in order, so outputs, report
+  // and messages do not depend on scheduling.
+  for (const SurfaceSpec& spec : specs) check_tissue(volume, loaded.min_hu, loaded.max_hu, spec);
+  std::vector<std::future<SurfaceResult>> pending;
   for (const SurfaceSpec& spec : specs) {
-    check_tissue(volume, loaded.min_hu, loaded.max_hu, spec);
     progress("extracting and finishing " + spec.label);
-    SurfaceResult result = make_surface(volume, spec, pipeline);
+    auto make = [&volume, &pipeline, spec] { return make_surface(volume, spec, pipeline); };
+    try {
+      pending.push_back(std::async(std::launch::async, make));
+    } catch (const std::system_error&) {
+      // No thread to be had (a tight --max-memory): make it when its result is needed.
+      pending.push_back(std::async(std::launch::deferred, make));
+    }
+  }
+  for (std::size_t s = 0; s < specs.size(); ++s) {
+    const SurfaceSpec& spec = specs[s];
+    SurfaceResult result = pending[s].get();
     if (result.mesh.empty()) {
       throw CommandError{kExitInputRefused,
                          result.steps.size() > 1

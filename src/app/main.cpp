@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 
 #include <iostream>
+#include <system_error>
 
 #include "app/batch_command.h"
 #include "app/convert_command.h"
@@ -53,6 +54,15 @@ int main(int argc, char** argv) {
   } catch (const std::bad_alloc&) {
     std::cerr << "typemerge: out of memory\n";
     return kExitInputRefused;
+  } catch (const std::system_error& error) {
+    // A thread that cannot be created under a memory limit is the same condition.
+    if (error.code() == std::errc::resource_unavailable_try_again ||
+        error.code() == std::errc::not_enough_memory) {
+      std::cerr << "typemerge: out of memory\n";
+      return kExitInputRefused;
+    }
+    std::cerr << "typemerge: internal error: " << error.what() << "\n";
+    return kExitInternal;
   } catch (const std::exception& error) {
     std::cerr << "typemerge: internal error: " << error.what() << "\n";
     return kExitInternal;

@@ -346,6 +346,19 @@ TEST(Cli, SeveralPresetsInOneRunWithReport) {
   EXPECT_EQ(report["input"]["size"], nlohmann::json({20, 16, 10}));
   EXPECT_EQ(report.dump().find("Canary"), std::string::npos);
   EXPECT_EQ(report.dump().find("CANARYID123"), std::string::npos);
+  EXPECT_EQ(report["surfaces"][0]["name"], "bone");  // in the order asked, though made concurrently
+
+  // Surfaces made together are the surfaces made alone, byte for byte.
+  for (const char* name : {"bone", "skin"}) {
+    const fs::path alone = out / (std::string(name) + "_alone.stl");
+    ASSERT_EQ(run("convert " + dir.string() + " --preset " + name + " --min-component 10 -o " +
+                  alone.string()).exit_code, 0);
+    const auto bytes = [](const fs::path& f) {
+      std::ifstream file(f, std::ios::binary);
+      return std::string((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    };
+    EXPECT_EQ(bytes(alone), bytes(out / (std::string(name) + ".stl"))) << name;
+  }
 }
 
 TEST(Cli, TypeMergingHalvesTrianglesAndStaysClosed) {
