@@ -11,6 +11,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "core/union_find.h"
+
 namespace typemerge::preprocess {
 namespace {
 
@@ -21,13 +23,7 @@ cv::Mat disk(double radius_mm, double spacing_x, double spacing_y) {
   return cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
 }
 
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
+using core::find_root;
 
 // Keeps the largest 6-connected component of `mask` (non-zero voxels). OpenCV labels each
 // slice (4-connected in-plane, with areas; slices in parallel), then labels that overlap

@@ -13,19 +13,15 @@
 #include <utility>
 #include <vector>
 
+#include "core/union_find.h"
+
 namespace typemerge::core {
 namespace {
 
 class UnionFind {
  public:
   explicit UnionFind(std::size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
-  std::size_t find(std::size_t x) {
-    while (parent_[x] != x) {
-      parent_[x] = parent_[parent_[x]];
-      x = parent_[x];
-    }
-    return x;
-  }
+  std::size_t find(std::size_t x) { return find_root(parent_, x); }
   void unite(std::size_t a, std::size_t b) { parent_[find(a)] = find(b); }
 
  private:

@@ -12,6 +12,8 @@
 #include <numeric>
 #include <vector>
 
+#include "core/union_find.h"
+
 namespace typemerge::mesh {
 namespace {
 
@@ -28,13 +30,7 @@ struct Components {
   std::vector<std::uint32_t> some_vertex;  // per label
 };
 
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
+using core::find_root;
 
 Components label_components(const core::TriangleMesh& mesh) {
   const std::size_t n = mesh.positions.size();

@@ -7,6 +7,8 @@
 #include <numeric>
 #include <vector>
 
+#include "core/union_find.h"
+
 namespace typemerge::mesh {
 namespace {
 
@@ -29,13 +31,7 @@ bool has_zero_area(const core::TriangleMesh& mesh, const std::array<std::uint32_
          a[0] * b[1] - a[1] * b[0] == 0.0;
 }
 
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
+using core::find_root;
 
 }  // namespace
 

@@ -12,6 +12,7 @@
 
 #include <OpenMesh/Core/System/omstream.hh>
 
+#include "core/union_find.h"
 #include "mesh/normals.h"
 
 namespace typemerge::mesh::detail {
@@ -51,13 +52,7 @@ std::vector<Triangle> accept_manifold_edges(const core::TriangleMesh& mesh, ToOp
   return accepted;
 }
 
-std::uint32_t find_root(std::vector<std::uint32_t>& parent, std::uint32_t x) {
-  while (parent[x] != x) {
-    parent[x] = parent[parent[x]];
-    x = parent[x];
-  }
-  return x;
-}
+using core::find_root;
 
 // Step 3: group the corners at each vertex into fans (corners joined when their triangles
 // share an edge at the vertex) and renumber the corners of every fan but the first to a new
@@ -110,7 +105,7 @@ void split_fans(std::vector<Triangle>& triangles, std::size_t vertex_count,
     for (std::uint32_t c = 0; c < count; ++c) {
       const std::uint32_t root = find_root(parent, c);
       if (fan_vertex[root] == kNone) {
-        if (root == find_root(parent, 0)) {
+        if (root == find_root(parent, 0u)) {
           fan_vertex[root] = static_cast<std::uint32_t>(v);
         } else {
           fan_vertex[root] = static_cast<std::uint32_t>(vertex_count + copies.size());
