@@ -8,6 +8,7 @@
 // stops the scan of the others.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -53,6 +54,11 @@ struct SeriesInfo {
   std::vector<std::string> warnings;  // header warnings of its files
 
   bool usable() const { return role == SeriesRole::volume && geometry.ok(); }
+  // Voxels of the volume it loads to (the uniform grid; 0 when refused).
+  std::uint64_t voxels() const {
+    return std::uint64_t{rows} * columns *
+           static_cast<std::uint64_t>(geometry.output_slices > 0 ? geometry.output_slices : 0);
+  }
 };
 
 struct FolderScan {

@@ -216,6 +216,13 @@ struct RunningStudy {
   bool timed_out = false;
 };
 
+// 0 every study converted or up to date, 6 none converted, 5 some failed or interrupted (an
+// interrupted run itself exits 130 before this is asked).
+int exit_code_of(const BatchTotals& totals) {
+  if (totals.converted + totals.up_to_date == 0) return kExitBatchNoneConverted;
+  return totals.failed + totals.interrupted > 0 ? kExitBatchSomeFailed : kExitOk;
+}
+
 StudyOutcome outcome_base(const StudyPlan& plan) {
   StudyOutcome outcome;
   outcome.input = plan.shown_folder;
@@ -298,6 +305,10 @@ class BatchRun {
   void finish(RunningStudy& running, const ChildResult& result);
   void record(StudyOutcome outcome, std::uint64_t voxels);
   std::vector<std::string> child_arguments(const StudyPlan& plan, const fs::path& work) const;
+  // The folder (or file) `convert` is given for the study.
+  fs::path study_input(const StudyPlan& plan) const {
+    return root_is_folder_ ? root_ / plan.folder : root_;
+  }
 
   const BatchOptions& options_;
   std::ostream& log_;
@@ -318,8 +329,7 @@ class BatchRun {
 
 std::vector<std::string> BatchRun::child_arguments(const StudyPlan& plan, const fs::path& work) const {
   std::vector<std::string> argv = {current_executable().string(), "convert",
-                                   (root_is_folder_ ? root_ / plan.folder : root_).string(),
-                                   "--series", plan.series_id};
+                                   study_input(plan).string(), "--series", plan.series_id};
   for (const std::string& a : input_arguments(options_.input)) argv.push_back(a);
   for (const std::string& a : options_.surface_arguments) argv.push_back(a);
   for (const std::string& a : {std::string("-o"), (work / "out").string(), std::string("--report"),
@@ -420,19 +430,9 @@ int BatchRun::run() {
   root_is_folder_ = fs::is_directory(root_, error);
   for (const std::string& w : scan.warnings) log_ << "warning: " << w << "\n";
 
-  // Identifiers of each study, read from one of its files only to keep them out of names.
-  std::vector<std::pair<std::string, std::vector<std::string>>> identifying;
-  for (const dicom::SeriesInfo& series : scan.series) {
-    if (series.slices.empty()) continue;
-    const std::string id = study_id_of(series.slices.front().study_uid);
-    if (std::none_of(identifying.begin(), identifying.end(),
-                     [&](const auto& entry) { return entry.first == id; })) {
-      identifying.emplace_back(id, dicom::patient_identifiers(series.slices.front().path));
-    }
-  }
+  // Patient identifiers are read from one file per study only to keep them out of names.
   const std::vector<StudyPlan> plans = plan_studies(scan, options_.filter, options_.name_pattern,
-                                                    identifying);
-  identifying.clear();
+                                                    dicom::patient_identifiers);
   prepare(plans);
 
   std::uint64_t voxels_to_do = 0;
@@ -516,14 +516,7 @@ int BatchRun::run() {
                 g_interrupted ? ", interrupted" : "", seconds_since(start_),
                 (out_ / (stem + ".json")).string().c_str());
   log_ << line;
-  int code = kExitOk;
-  if (g_interrupted) {
-    code = kExitInterrupted;
-  } else if (totals.converted + totals.up_to_date == 0) {
-    code = kExitBatchNoneConverted;
-  } else if (totals.failed > 0) {
-    code = kExitBatchSomeFailed;
-  }
+  const int code = g_interrupted ? kExitInterrupted : exit_code_of(totals);
   events_.write("batch_end", {{"converted", totals.converted}, {"up_to_date", totals.up_to_date},
                               {"failed", totals.failed}, {"interrupted", bool(g_interrupted)},
                               {"seconds", std::round(seconds_since(start_) * 1000) / 1000},
@@ -566,7 +559,7 @@ bool BatchRun::start_study(PendingStudy study, std::uint64_t estimate, const fs:
 // convert's messages may name the folder it was given; the summary shows it masked (folder
 // names can spell patient names) and relative to ROOT.
 std::string BatchRun::masked_paths(std::string text, const StudyPlan& plan) const {
-  const std::string input = (root_is_folder_ ? root_ / plan.folder : root_).string();
+  const std::string input = study_input(plan).string();
   for (std::size_t at = text.find(input); at != std::string::npos;
        at = text.find(input, at + plan.shown_folder.size())) {
     text.replace(at, input.size(), plan.shown_folder);
@@ -577,21 +570,19 @@ std::string BatchRun::masked_paths(std::string text, const StudyPlan& plan) cons
 // Ctrl-C, SIGTERM, SIGHUP: the running children are killed (their work folders go with the
 // batch's), and they and the queued studies are recorded as interrupted.
 void BatchRun::stop_all(std::vector<RunningStudy>& running) {
+  auto interrupted = [this](const StudyPlan& plan) {
+    StudyOutcome outcome = outcome_base(plan);
+    outcome.status = StudyStatus::interrupted;
+    outcome.reason = "interrupted";
+    outcomes_.push_back(std::move(outcome));
+  };
   for (RunningStudy& r : running) {
     r.child->kill();
     while (!r.child->poll()) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    StudyOutcome outcome = outcome_base(*r.study.plan);
-    outcome.status = StudyStatus::interrupted;
-    outcome.reason = "interrupted";
-    outcomes_.push_back(outcome);
+    interrupted(*r.study.plan);
   }
   running.clear();
-  for (const PendingStudy& s : queue_) {
-    StudyOutcome outcome = outcome_base(*s.plan);
-    outcome.status = StudyStatus::interrupted;
-    outcome.reason = "interrupted";
-    outcomes_.push_back(outcome);
-  }
+  for (const PendingStudy& s : queue_) interrupted(*s.plan);
   queue_.clear();
 }
 
@@ -710,11 +701,9 @@ int run_batch(const BatchOptions& options, std::ostream& log) {
   if (options.merge_summaries) {
     try {
       const auto outcomes = merge_shard_summaries(options.out);
-      const BatchTotals totals = totals_of(outcomes);
       log << "batch: joined " << outcomes.size() << " studies into "
           << (fs::path(options.out) / "summary.json").string() << "\n";
-      if (totals.converted + totals.up_to_date == 0) return kExitBatchNoneConverted;
-      return totals.failed + totals.interrupted > 0 ? kExitBatchSomeFailed : kExitOk;
+      return exit_code_of(totals_of(outcomes));
     } catch (const std::runtime_error& error) {
       throw CommandError{kExitInputRefused, error.what()};
     }

@@ -186,7 +186,7 @@ bool in_shard(const std::string& study_id, int k, int n) {
 
 std::vector<StudyPlan> plan_studies(
     const dicom::FolderScan& scan, const SeriesFilter& filter, const std::string& name_pattern,
-    const std::vector<std::pair<std::string, std::vector<std::string>>>& identifying) {
+    const IdentifyingValues& identifying) {
   // std::map: studies in a stable order, whatever the order the scan met them in.
   std::map<std::string, std::vector<std::size_t>> series_by_study;
   for (std::size_t s = 0; s < scan.series.size(); ++s) {
@@ -221,17 +221,14 @@ std::vector<StudyPlan> plan_studies(
     if (chosen) {
       const dicom::SeriesInfo& info = scan.series[*chosen];
       plan.series_id = info.id;
-      plan.voxels = std::uint64_t(info.rows) * info.columns *
-                    static_cast<std::uint64_t>(std::max<std::int64_t>(info.geometry.output_slices, 0));
+      plan.voxels = info.voxels();
     } else {
       plan.refusal = refusal_reason(series, filter);
     }
-    static const std::vector<std::string> kNone;
-    const std::vector<std::string>* values = &kNone;
-    for (const auto& [id, list] : identifying) {
-      if (id == plan.study_id) values = &list;
-    }
-    plan.shown_folder = masked_folder(plan, *values);
+    // Read from the first file of the study's first series, used for masking only.
+    plan.shown_folder = masked_folder(
+        plan, identifying ? identifying(scan.series[members.front()].slices.front().path)
+                          : std::vector<std::string>{});
     plan.output_name = output_name(name_pattern, plan);
     plans.push_back(std::move(plan));
   }

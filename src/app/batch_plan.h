@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -45,11 +46,15 @@ struct StudyPlan {
 // (study_id), {series} (chosen series id).
 inline constexpr const char* kDefaultNamePattern = "{folder}";
 
-// `identifying` holds, per study id, values that identify the patient (name parts, IDs); a
-// folder component containing one of them is replaced by "study-<id>".
-std::vector<StudyPlan> plan_studies(
-    const dicom::FolderScan& scan, const SeriesFilter& filter, const std::string& name_pattern,
-    const std::vector<std::pair<std::string, std::vector<std::string>>>& identifying = {});
+// Given one file of a study, the values that identify its patient (name parts, IDs; see
+// dicom::patient_identifiers).
+using IdentifyingValues = std::function<std::vector<std::string>(const std::filesystem::path&)>;
+
+// A folder component containing one of `identifying`'s values for its study is replaced by
+// "study-<id>"; without `identifying` no folder is masked.
+std::vector<StudyPlan> plan_studies(const dicom::FolderScan& scan, const SeriesFilter& filter,
+                                    const std::string& name_pattern,
+                                    const IdentifyingValues& identifying = {});
 
 // The study id of a StudyInstanceUID (stable, non-identifying).
 std::string study_id_of(const std::string& study_uid);

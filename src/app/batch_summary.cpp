@@ -125,6 +125,13 @@ void write_atomically(const fs::path& path, const std::string& text) {
   file.commit();
 }
 
+// Summaries list studies by output name, whatever order they were converted in.
+void sort_by_output_name(std::vector<StudyOutcome>& outcomes) {
+  std::sort(outcomes.begin(), outcomes.end(), [](const StudyOutcome& a, const StudyOutcome& b) {
+    return std::tie(a.output_name, a.study) < std::tie(b.output_name, b.study);
+  });
+}
+
 }  // namespace
 
 const char* status_name(StudyStatus status) {
@@ -162,9 +169,7 @@ BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes) {
 
 void write_summary(const fs::path& out_root, const std::string& stem,
                    std::vector<StudyOutcome> outcomes, const std::string& shard) {
-  std::sort(outcomes.begin(), outcomes.end(), [](const StudyOutcome& a, const StudyOutcome& b) {
-    return std::tie(a.output_name, a.study) < std::tie(b.output_name, b.study);
-  });
+  sort_by_output_name(outcomes);
   const BatchTotals totals = totals_of(outcomes);
   ordered_json json = {{"tool", "typemerge"},
                        {"version", kVersion},
@@ -225,10 +230,8 @@ std::vector<StudyOutcome> merge_shard_summaries(const fs::path& out_root) {
       throw std::runtime_error("malformed " + path.filename().string() + ": " + e.what());
     }
   }
+  sort_by_output_name(outcomes);
   write_summary(out_root, "summary", outcomes, "");
-  std::sort(outcomes.begin(), outcomes.end(), [](const StudyOutcome& a, const StudyOutcome& b) {
-    return std::tie(a.output_name, a.study) < std::tie(b.output_name, b.study);
-  });
   return outcomes;
 }
 

@@ -263,8 +263,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   const auto load_start = Clock::now();
   progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
-    const std::uint64_t voxels = std::uint64_t(s.rows) * s.columns *
-                                 std::uint64_t(std::max<std::int64_t>(s.geometry.output_slices, 0));
+    const std::uint64_t voxels = s.voxels();
     if (max_memory > 0 && conversion_memory_estimate(voxels) > max_memory) {
       throw CommandError{kExitInputRefused,
                          "series " + s.id + " would need about " +

@@ -54,18 +54,9 @@ const StudyPlan* find_plan(const std::vector<StudyPlan>& plans, const std::strin
   return nullptr;
 }
 
-std::vector<std::pair<std::string, std::vector<std::string>>> identifiers_of(
-    const typemerge::dicom::FolderScan& s) {
-  std::vector<std::pair<std::string, std::vector<std::string>>> result;
-  for (const auto& series : s.series) {
-    result.emplace_back(study_id_of(series.slices.front().study_uid),
-                        typemerge::dicom::patient_identifiers(series.slices.front().path));
-  }
-  return result;
-}
-
 TEST(BatchPlan, FindsEveryStudyAndChoosesItsSeriesByTheDocumentedRule) {
-  const auto plans = plan_studies(scan(), {}, kDefaultNamePattern, identifiers_of(scan()));
+  const auto plans =
+      plan_studies(scan(), {}, kDefaultNamePattern, typemerge::dicom::patient_identifiers);
   ASSERT_EQ(plans.size(), 5u);
   const StudyPlan* a = find_plan(plans, "siteA/p01/studyA");
   const StudyPlan* b = find_plan(plans, "siteA/p02/studyB");
@@ -110,7 +101,8 @@ TEST(BatchPlan, FiltersRestrictTheChoiceAndSayWhenNothingMatches) {
 }
 
 TEST(BatchPlan, FolderNamesSpellingThePatientAreMaskedInNamesAndInputs) {
-  const auto plans = plan_studies(scan(), {}, kDefaultNamePattern, identifiers_of(scan()));
+  const auto plans =
+      plan_studies(scan(), {}, kDefaultNamePattern, typemerge::dicom::patient_identifiers);
   const auto c = std::find_if(plans.begin(), plans.end(), [](const StudyPlan& p) {
     return p.folder == "siteB/DOE_JOHN/studyC/s1";
   });
