@@ -264,7 +264,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
     const std::uint64_t voxels = s.voxels();
-    if (max_memory > 0 && conversion_memory_estimate(voxels) > max_memory) {
+    if (conversion_memory_estimate(voxels) > max_memory) {
       throw CommandError{kExitInputRefused,
                          "series " + s.id + " would need about " +
                              format_megabytes(conversion_memory_estimate(voxels)) +
@@ -272,7 +272,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     }
     // From here on (pixels, preprocessing, meshes) the bound is hard. The scan before it reads
     // headers only, each bounded by the per-file checks of the header reader.
-    if (max_memory > 0) limit_address_space(max_memory);
+    limit_address_space(max_memory);
   });
   const dicom::SeriesInfo& series = *input.series;
   dicom::LoadedSeries& loaded = input.loaded;
