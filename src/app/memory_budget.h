@@ -8,10 +8,11 @@
 
 namespace typemerge::app {
 
-// Peak memory of converting a series of `voxels` voxels: measured 393–515 MB peak RSS for the
-// abdomen (35 M voxels, bone and skin; `/usr/bin/time -v typemerge convert`), i.e. about
-// 14 bytes a voxel (the HU volume, its table-removed copy and masks, the meshes) plus the
-// process itself; 16 bytes a voxel and 64 MiB leave a margin.
+// Peak memory of converting a series of `voxels` voxels: measured 368 MB (abdomen) and 562 MB
+// (head_tilt_variable resampled) peak RSS for 35 M voxels with bone and skin made concurrently
+// (batch summary), i.e. up to about 15 bytes a voxel (the HU volume, its table-removed copy and
+// masks, two meshes) plus the process itself; 16 bytes a voxel and 64 MiB (629 MB here) leave
+// a thin margin.
 std::uint64_t conversion_memory_estimate(std::uint64_t voxels);
 
 // Three quarters of the physical memory.
