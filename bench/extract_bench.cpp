@@ -118,14 +118,16 @@ int main(int argc, char** argv) {
         else if (algorithm != "tm") return usage();
         std::vector<double> times;
         core::TriangleMesh mesh;
+        core::MergeStats merge_stats;
         long peak_added = 0;
         for (int r = 0; r < repeat; ++r) {
           mesh = {};
           ambiguity = {};
+          merge_stats = {};
           const long before = current_memory_kib();
           reset_peak_memory();
           const auto start = std::chrono::steady_clock::now();
-          mesh = algorithm == "tm" ? core::extract_type_merged(volume, iso, options)
+          mesh = algorithm == "tm" ? core::extract_type_merged(volume, iso, options, {}, &merge_stats)
                                    : core::extract_isosurface(volume, iso, options);
           const auto end = std::chrono::steady_clock::now();
           peak_added = std::max(peak_added, peak_memory_kib() - before);
@@ -169,6 +171,16 @@ int main(int argc, char** argv) {
                       static_cast<long long>(check.euler_characteristic),
                       static_cast<long long>(mc_check.euler_characteristic), check.components,
                       mc_check.components);
+          const auto& s = merge_stats;
+          std::printf("    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), capped %zu, "
+                      "abandoned %zu, deferred %zu; collapses %zu of %zu; rejected: boundary %zu "
+                      "link %zu fan %zu normal %zu gradient %zu distance %zu class %zu\n",
+                      s.cubes_merged_by_type[0], s.cubes_merged_by_type[1],
+                      s.cubes_merged_by_type[2], s.hexagon_merges, s.minor_merges, s.runs_capped,
+                      s.merges_abandoned, s.cubes_deferred, s.collapses_done, s.collapses_tried,
+                      s.rejected_boundary, s.rejected_link, s.rejected_fan_size,
+                      s.rejected_normal, s.rejected_gradient, s.rejected_distance,
+                      s.rejected_class_size);
         }
       }
     }

@@ -184,9 +184,9 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
   command->add_option("--min-component", options.min_component_mm3,
                       "Remove components enclosing less than this many mm3");
   command->add_flag("--keep-largest", options.finish_options.keep_largest,
-                    "Keep only the largest component");
+                    "Keep only the largest solid (its cavities stay unless --fill-cavities)");
   command->add_flag("--fill-cavities", options.fill_cavities,
-                    "Remove shells inside others (one outer shell)");
+                    "Fill cavities: remove every shell inside another (one shell per solid)");
   command->add_option("--smooth", options.finish_options.smooth_iterations,
                       "Taubin smoothing iterations (volume-preserving; default 0)")
       ->check(CLI::Range(0, 1000));

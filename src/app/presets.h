@@ -26,8 +26,8 @@ struct Preset {
   // under this volume), and for skin keep one outer shell.
   double min_component_mm3 = 0;
   bool fill_cavities = false;
-  // Skin is one shell: the largest by enclosed volume, which also drops the scanner table and
-  // the walls of air cavities inside the body (measured on the abdomen series: 2179 → 1).
+  // Skin is one shell: the largest solid (which drops the scanner table) with its cavities
+  // filled (the walls of air inside the body; measured on the abdomen series: 2179 → 1).
   bool keep_largest = false;
 };
 

@@ -97,16 +97,17 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   const double min_volume = finish.min_component_mm3.value_or(spec.min_component_mm3);
   const bool keep_largest = finish.keep_largest || spec.keep_largest;
   if (keep_largest) {
-    run_step(result, "keep largest component", [](core::TriangleMesh& mesh) {
+    run_step(result, "keep largest solid", [](core::TriangleMesh& mesh) {
       return component_details(mesh::keep_largest_component(mesh));
     });
-  } else if (min_volume > 0) {
+  }
+  if (min_volume > 0) {
     run_step(result, "remove components under " + number(min_volume) + " mm3",
              [&](core::TriangleMesh& mesh) {
                return component_details(mesh::remove_small_components(mesh, min_volume));
              });
   }
-  if (finish.fill_cavities.value_or(spec.fill_cavities) && !keep_largest) {
+  if (finish.fill_cavities.value_or(spec.fill_cavities)) {
     run_step(result, "fill cavities", [](core::TriangleMesh& mesh) {
       return component_details(mesh::fill_cavities(mesh));
     });

@@ -142,20 +142,160 @@ bool box_inside(const Components& c, std::size_t inner, std::size_t outer) {
   return true;
 }
 
+// Is one shell inside another? The parity of the crossings of a ray from a vertex of the inner
+// shell with the outer shell's triangles. Only triangles whose shadow along the ray covers its
+// origin can be crossed, so each outer shell's triangles are bucketed once in a grid on the
+// plane perpendicular to the ray (a skeleton's main shell has hundreds of cavities to test
+// against its 300 k triangles: 7.4 s for the abdomen's bone by testing every triangle).
+class Containment {
+ public:
+  Containment(const core::TriangleMesh& mesh, const Components& c)
+      : mesh_(mesh), c_(c), grids_(c.count) {}
+
+  bool inside(std::size_t inner, std::size_t outer) {
+    if (inner == outer || !box_inside(c_, inner, outer)) return false;
+    const ShadowGrid& grid = grid_of(outer);
+    const Point origin = to_point(mesh_.positions[c_.some_vertex[inner]]);
+    const double u = dot(origin, kU);
+    const double v = dot(origin, kV);
+    const std::int64_t i = static_cast<std::int64_t>(std::floor((u - grid.u0) / grid.cell));
+    const std::int64_t j = static_cast<std::int64_t>(std::floor((v - grid.v0) / grid.cell));
+    if (i < 0 || j < 0 || i >= grid.size || j >= grid.size) return false;
+    const auto cell = static_cast<std::size_t>(j * grid.size + i);
+    std::size_t crossings = 0;
+    for (std::uint32_t k = grid.start[cell]; k < grid.start[cell + 1]; ++k) {
+      const auto& t = mesh_.triangles[grid.triangles[k]];
+      if (ray_hits(origin, kDirection, to_point(mesh_.positions[t[0]]),
+                   to_point(mesh_.positions[t[1]]), to_point(mesh_.positions[t[2]]))) {
+        ++crossings;
+      }
+    }
+    return crossings % 2 == 1;
+  }
+
+ private:
+  // A fixed, deliberately irrational direction, so rays through edges and vertices of lattice
+  // meshes are unlikely; kU and kV complete it to an orthonormal basis.
+  static constexpr Point kDirection = {0.5773502691896258, 0.5612486080160912,
+                                       0.5929270612815711};
+  static constexpr Point kU = {0.6970374326528527, -0.7170347393820747, 0.0};  // ⟂ kDirection
+  static constexpr Point kV = {kDirection[1] * kU[2] - kDirection[2] * kU[1],
+                               kDirection[2] * kU[0] - kDirection[0] * kU[2],
+                               kDirection[0] * kU[1] - kDirection[1] * kU[0]};
+
+  struct ShadowGrid {
+    bool built = false;
+    double u0 = 0, v0 = 0, cell = 1;
+    std::int64_t size = 0;  // cells per side
+    std::vector<std::uint32_t> start;      // CSR: cell → its triangles
+    std::vector<std::uint32_t> triangles;
+  };
+
+  const ShadowGrid& grid_of(std::size_t outer) {
+    ShadowGrid& grid = grids_[outer];
+    if (grid.built) return grid;
+    grid.built = true;
+    struct Shadow {
+      std::uint32_t triangle;
+      double u_min, u_max, v_min, v_max;
+    };
+    std::vector<Shadow> shadows;
+    shadows.reserve(c_.triangles[outer]);
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    double u_lo = kInf, u_hi = -kInf, v_lo = kInf, v_hi = -kInf;
+    for (std::size_t i = 0; i < mesh_.triangles.size(); ++i) {
+      if (c_.of_triangle[i] != outer) continue;
+      Shadow s{static_cast<std::uint32_t>(i), kInf, -kInf, kInf, -kInf};
+      for (const std::uint32_t vertex : mesh_.triangles[i]) {
+        const Point p = to_point(mesh_.positions[vertex]);
+        const double u = dot(p, kU);
+        const double v = dot(p, kV);
+        s.u_min = std::min(s.u_min, u);
+        s.u_max = std::max(s.u_max, u);
+        s.v_min = std::min(s.v_min, v);
+        s.v_max = std::max(s.v_max, v);
+      }
+      u_lo = std::min(u_lo, s.u_min);
+      u_hi = std::max(u_hi, s.u_max);
+      v_lo = std::min(v_lo, s.v_min);
+      v_hi = std::max(v_hi, s.v_max);
+      shadows.push_back(s);
+    }
+    // About two triangles per cell; a margin of 1e-9 of the extent keeps rounding in the
+    // projection from leaving out a triangle the exact ray test would count.
+    grid.size = std::clamp<std::int64_t>(
+        static_cast<std::int64_t>(std::sqrt(static_cast<double>(shadows.size()) / 2.0)), 1, 2048);
+    const double extent = std::max({u_hi - u_lo, v_hi - v_lo, 1e-30});
+    const double margin = 1e-9 * extent;
+    grid.u0 = u_lo - 2 * margin;
+    grid.v0 = v_lo - 2 * margin;
+    grid.cell = (extent + 4 * margin) / static_cast<double>(grid.size);
+    auto cells = [&](const Shadow& s, auto&& visit) {
+      const auto clamp_cell = [&](double x, double x0) {
+        return std::clamp<std::int64_t>(static_cast<std::int64_t>(std::floor((x - x0) / grid.cell)),
+                                        0, grid.size - 1);
+      };
+      const std::int64_t i0 = clamp_cell(s.u_min - margin, grid.u0);
+      const std::int64_t i1 = clamp_cell(s.u_max + margin, grid.u0);
+      const std::int64_t j0 = clamp_cell(s.v_min - margin, grid.v0);
+      const std::int64_t j1 = clamp_cell(s.v_max + margin, grid.v0);
+      for (std::int64_t j = j0; j <= j1; ++j) {
+        for (std::int64_t i = i0; i <= i1; ++i) visit(static_cast<std::size_t>(j * grid.size + i));
+      }
+    };
+    grid.start.assign(static_cast<std::size_t>(grid.size * grid.size) + 1, 0);
+    for (const Shadow& s : shadows) cells(s, [&](std::size_t cell) { ++grid.start[cell + 1]; });
+    for (std::size_t k = 1; k < grid.start.size(); ++k) grid.start[k] += grid.start[k - 1];
+    grid.triangles.resize(grid.start.back());
+    std::vector<std::uint32_t> fill(grid.start.begin(), grid.start.end() - 1);
+    for (const Shadow& s : shadows) {
+      cells(s, [&](std::size_t cell) { grid.triangles[fill[cell]++] = s.triangle; });
+    }
+    return grid;
+  }
+
+  const core::TriangleMesh& mesh_;
+  const Components& c_;
+  std::vector<ShadowGrid> grids_;
+};
+
 }  // namespace
 
 ComponentReport keep_largest_component(core::TriangleMesh& mesh) {
   const Components c = label_components(mesh);
+  // The largest solid: the outward shell enclosing the most volume. Cavity walls (negative
+  // volume) compete only when there is no outward shell at all (an inside-out mesh).
+  bool any_outward = false;
+  for (std::size_t label = 0; label < c.count; ++label) any_outward |= c.volume[label] > 0.0;
+  auto size_of = [&](std::size_t label) {
+    return any_outward ? c.volume[label] : std::abs(c.volume[label]);
+  };
   std::size_t largest = 0;
   for (std::size_t label = 1; label < c.count; ++label) {
-    const double size = std::abs(c.volume[label]);
-    const double best = std::abs(c.volume[largest]);
+    const double size = size_of(label);
+    const double best = size_of(largest);
     if (size > best || (size == best && c.triangles[label] > c.triangles[largest])) {
       largest = label;
     }
   }
   std::vector<bool> remove(c.count, true);
-  if (c.count > 0) remove[largest] = false;
+  if (c.count == 0) return remove_components(mesh, c, remove);
+  remove[largest] = false;
+  if (!any_outward) return remove_components(mesh, c, remove);
+
+  // Its cavities stay: a cavity wall whose innermost enclosing outward shell is the largest.
+  // (A cavity of an island floating inside one of its cavities belongs to the island.)
+  Containment containment(mesh, c);
+  for (std::size_t cavity = 0; cavity < c.count; ++cavity) {
+    if (c.volume[cavity] >= 0.0 || !containment.inside(cavity, largest)) continue;
+    bool nearer_container = false;
+    for (std::size_t shell = 0; shell < c.count && !nearer_container; ++shell) {
+      nearer_container = shell != largest && c.volume[shell] > 0.0 &&
+                         c.volume[shell] < c.volume[largest] &&
+                         containment.inside(cavity, shell) && containment.inside(shell, largest);
+    }
+    remove[cavity] = nearer_container;
+  }
   return remove_components(mesh, c, remove);
 }
 
@@ -174,31 +314,14 @@ ComponentReport fill_cavities(core::TriangleMesh& mesh) {
   std::vector<bool> remove(c.count);
   for (std::size_t label = 0; label < c.count; ++label) remove[label] = c.volume[label] < 0.0;
 
-  // Positive shells inside another positive shell. Candidate containers must be larger and
-  // hold the candidate's bounding box; the crossing count uses the container's triangles.
-  std::vector<std::vector<std::uint32_t>> triangles_of(c.count);
-  const Point direction = {0.5773502691896258, 0.5612486080160912, 0.5929270612815711};
+  // Positive shells inside another, larger positive shell.
+  Containment containment(mesh, c);
   for (std::size_t inner = 0; inner < c.count; ++inner) {
     if (remove[inner]) continue;
-    const Point origin = to_point(mesh.positions[c.some_vertex[inner]]);
     for (std::size_t outer = 0; outer < c.count && !remove[inner]; ++outer) {
-      if (outer == inner || c.volume[outer] <= c.volume[inner] || !box_inside(c, inner, outer)) {
-        continue;
+      if (c.volume[outer] > c.volume[inner] && containment.inside(inner, outer)) {
+        remove[inner] = true;
       }
-      if (triangles_of[outer].empty()) {
-        for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
-          if (c.of_triangle[i] == outer) triangles_of[outer].push_back(static_cast<std::uint32_t>(i));
-        }
-      }
-      std::size_t crossings = 0;
-      for (const std::uint32_t i : triangles_of[outer]) {
-        const auto& t = mesh.triangles[i];
-        if (ray_hits(origin, direction, to_point(mesh.positions[t[0]]),
-                     to_point(mesh.positions[t[1]]), to_point(mesh.positions[t[2]]))) {
-          ++crossings;
-        }
-      }
-      if (crossings % 2 == 1) remove[inner] = true;
     }
   }
   return remove_components(mesh, c, remove);

@@ -28,9 +28,11 @@ struct ComponentReport {
   Validity validity;            // of the result
 };
 
-// Keeps the component with the largest |signed volume| (ties: more triangles, then the
-// first) and removes every other one — including the cavity walls of the kept shell, which
-// are components of their own, so its cavities are filled as a side effect.
+// Keeps the largest solid: the outward shell enclosing the most volume (ties: more triangles,
+// then the first) with the walls of its own cavities, and removes every other component —
+// other solids, their cavities, and islands floating in its cavities. A skull keeps its
+// cranial cavity (fill_cavities afterwards makes it one shell). A mesh with no outward shell
+// keeps its component of largest |signed volume|.
 ComponentReport keep_largest_component(core::TriangleMesh& mesh);
 
 // Removes every component whose |signed volume| is < min_volume (mesh units³, mm³ after

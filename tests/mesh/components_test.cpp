@@ -102,6 +102,42 @@ TEST(Components, FillCavitiesTurnsAHollowShellIntoOneSolidShell) {
   EXPECT_GT(report.kept_volume, before.volume);  // the cavity (minus island) was filled
 }
 
+// The same hollow ball, with a smaller hollow ball beside it: keeping the largest solid keeps
+// its cavity (a skull keeps its cranial cavity), drops the island floating in that cavity and
+// the other solid with its own cavity; filling afterwards makes it one shell.
+TEST(Components, KeepLargestKeepsTheCavityOfTheLargestSolidOnly) {
+  const Ball centre{17.2, 16.8, 17.1, 0.0};
+  const Ball island{17.5, 16.4, 17.9, 3.0};
+  const Ball beside{39.1, 38.8, 39.3, 6.0};
+  core::TriangleMesh mesh = test::hollow_shell(kN, centre, 12.0, 7.0, {island});
+  // The ball beside is hollow too: its cavity wall (radius 3) is a negative shell outside the
+  // big ball, dropped with its solid.
+  const core::TriangleMesh second = test::hollow_shell(kN, beside, 6.0, 3.0);
+  const auto offset = static_cast<std::uint32_t>(mesh.positions.size());
+  mesh.positions.insert(mesh.positions.end(), second.positions.begin(), second.positions.end());
+  for (auto t : second.triangles) {
+    for (auto& v : t) v += offset;
+    mesh.triangles.push_back(t);
+  }
+  const core::MeshCheck before = core::check_mesh(mesh);
+  ASSERT_EQ(before.components, 5u);  // outer, cavity, island; ball beside and its cavity
+  ASSERT_TRUE(before.closed_manifold());
+
+  const ComponentReport report = keep_largest_component(mesh);
+
+  EXPECT_EQ(report.components_after, 2u);  // the outer wall and its cavity wall
+  EXPECT_EQ(report.removed_components, 3u);
+  const double wall = core::check_mesh(test::hollow_shell(kN, centre, 12.0, 7.0)).volume;
+  EXPECT_NEAR(report.kept_volume, wall, 1e-9 * wall);
+  EXPECT_LT(report.kept_volume, 0.85 * volume_alone({centre.x, centre.y, centre.z, 12.0}));
+  EXPECT_TRUE(report.validity.valid());
+
+  const ComponentReport filled = fill_cavities(mesh);
+  EXPECT_EQ(filled.components_after, 1u);
+  const double solid = volume_alone({centre.x, centre.y, centre.z, 12.0});
+  EXPECT_NEAR(filled.kept_volume, solid, 1e-9 * solid);
+}
+
 TEST(Components, FillCavitiesLeavesSolidsAlone) {
   core::TriangleMesh mesh = test::balls(kN, {kBig, kMedium, kSpeck});
   const ComponentReport report = fill_cavities(mesh);
