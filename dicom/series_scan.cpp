@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <functional>
 #include <map>
+#include <numeric>
 #include <stdexcept>
 #include <tuple>
 
@@ -183,10 +184,10 @@ std::vector<SeriesInfo> group_into_series(std::vector<SliceHeader> headers,
 }
 
 std::optional<std::size_t> choose_series(
-    const std::vector<SeriesInfo>& series,
+    const std::vector<SeriesInfo>& series, std::span<const std::size_t> candidates,
     const std::function<bool(const SeriesInfo&)>& eligible) {
   std::optional<std::size_t> best;
-  for (std::size_t s = 0; s < series.size(); ++s) {
+  for (const std::size_t s : candidates) {
     if (!series[s].usable() || !eligible(series[s])) continue;
     if (!best) {
       best = s;
@@ -201,6 +202,14 @@ std::optional<std::size_t> choose_series(
     }
   }
   return best;
+}
+
+std::optional<std::size_t> choose_series(
+    const std::vector<SeriesInfo>& series,
+    const std::function<bool(const SeriesInfo&)>& eligible) {
+  std::vector<std::size_t> all(series.size());
+  std::iota(all.begin(), all.end(), std::size_t{0});
+  return choose_series(series, all, eligible);
 }
 
 std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& series) {

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -85,6 +86,12 @@ std::optional<std::size_t> choose_default_series(const std::vector<SeriesInfo>& 
 
 // The same rule among the usable series for which `eligible` is true (batch filters).
 std::optional<std::size_t> choose_series(const std::vector<SeriesInfo>& series,
+                                         const std::function<bool(const SeriesInfo&)>& eligible);
+
+// The same rule among series[i], i in `candidates` (increasing), e.g. one study's series of
+// a large tree, without visiting the others.
+std::optional<std::size_t> choose_series(const std::vector<SeriesInfo>& series,
+                                         std::span<const std::size_t> candidates,
                                          const std::function<bool(const SeriesInfo&)>& eligible);
 
 }  // namespace typemerge::dicom

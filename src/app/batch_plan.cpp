@@ -214,10 +214,8 @@ std::vector<StudyPlan> plan_studies(
     plan.files.erase(std::unique(plan.files.begin(), plan.files.end()), plan.files.end());
     plan.folder = common_folder(relative);
 
-    const auto chosen = dicom::choose_series(scan.series, [&](const dicom::SeriesInfo& info) {
-      return !info.slices.empty() && info.slices.front().study_uid == study_uid &&
-             filter.accepts(info);
-    });
+    const auto chosen = dicom::choose_series(
+        scan.series, members, [&](const dicom::SeriesInfo& info) { return filter.accepts(info); });
     if (chosen) {
       const dicom::SeriesInfo& info = scan.series[*chosen];
       plan.series_id = info.id;
