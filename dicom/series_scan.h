@@ -8,6 +8,7 @@
 // stops the scan of the others.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -59,6 +60,16 @@ struct SeriesInfo {
   std::uint64_t voxels() const {
     return std::uint64_t{rows} * columns *
            static_cast<std::uint64_t>(geometry.output_slices > 0 ? geometry.output_slices : 0);
+  }
+  // Its grid: voxels along columns, rows and slices, and their spacing in mm (the pixel
+  // spacing of its first slice, 1 mm when absent, and the slice step).
+  std::array<std::uint64_t, 3> grid_size() const {
+    return {columns, rows,
+            static_cast<std::uint64_t>(geometry.output_slices > 0 ? geometry.output_slices : 0)};
+  }
+  std::array<double, 3> spacing_mm() const {
+    const auto& pixel = slices.empty() ? std::nullopt : slices.front().pixel_spacing;
+    return {pixel ? (*pixel)[1] : 1.0, pixel ? (*pixel)[0] : 1.0, geometry.slice_step_mm};
   }
 };
 

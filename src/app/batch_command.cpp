@@ -469,7 +469,9 @@ int BatchRun::run() {
     // Start what the job count and the memory budget allow; one study always runs, even if
     // its estimate alone exceeds the budget (the hard limit then decides).
     while (!queue_.empty() && running.size() < options_.jobs) {
-      const std::uint64_t estimate = conversion_memory_estimate(queue_.front().plan->voxels);
+      const StudyPlan& plan = *queue_.front().plan;
+      const std::uint64_t estimate = conversion_memory_estimate(
+          working_voxels(plan.grid_size, plan.spacing_mm, options_.convert.voxel_size_mm));
       if (!running.empty() && reserved + estimate > budget_) break;
       PendingStudy next = std::move(queue_.front());
       queue_.pop_front();

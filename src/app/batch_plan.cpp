@@ -220,6 +220,8 @@ std::vector<StudyPlan> plan_studies(
       const dicom::SeriesInfo& info = scan.series[*chosen];
       plan.series_id = info.id;
       plan.voxels = info.voxels();
+      plan.grid_size = info.grid_size();
+      plan.spacing_mm = info.spacing_mm();
     } else {
       plan.refusal = refusal_reason(series, filter);
     }

@@ -8,6 +8,7 @@
 // that spells the patient's name or ID.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -39,6 +40,8 @@ struct StudyPlan {
   std::string series_id;          // the chosen series; empty when none could be chosen
   std::string refusal;            // why none was chosen
   std::uint64_t voxels = 0;       // of the chosen series' volume
+  std::array<std::uint64_t, 3> grid_size{};  // its grid (columns, rows, slices)
+  std::array<double, 3> spacing_mm{};         // and spacing
   std::string output_name;        // relative folder under the output root ('/'-separated)
 };
 

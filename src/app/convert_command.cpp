@@ -263,7 +263,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   const auto load_start = Clock::now();
   progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
-    const std::uint64_t voxels = s.voxels();
+    const std::uint64_t voxels = working_voxels(s.grid_size(), s.spacing_mm(), options.voxel_size_mm);
     if (conversion_memory_estimate(voxels) > max_memory) {
       throw CommandError{kExitInputRefused,
                          "series " + s.id + " would need about " +

@@ -3,6 +3,7 @@
 #include <sys/resource.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -11,6 +12,19 @@ namespace typemerge::app {
 
 std::uint64_t conversion_memory_estimate(std::uint64_t voxels) {
   return voxels * 16 + (64ull << 20);
+}
+
+std::uint64_t working_voxels(const std::array<std::uint64_t, 3>& size,
+                             const std::array<double, 3>& spacing_mm, double voxel_size_mm) {
+  const std::uint64_t voxels = size[0] * size[1] * size[2];
+  if (!(voxel_size_mm > 0)) return voxels;
+  double resampled = 1;
+  for (int k = 0; k < 3; ++k) {
+    resampled *= std::ceil(static_cast<double>(size[k]) * spacing_mm[k] / voxel_size_mm) + 1;
+  }
+  // Saturates instead of wrapping: an absurd request is then simply over any budget.
+  constexpr double kMax = 1e18;
+  return voxels + static_cast<std::uint64_t>(std::min(resampled, kMax));
 }
 
 std::uint64_t default_memory_budget() {

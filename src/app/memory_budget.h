@@ -3,6 +3,7 @@
 // "out of memory" instead of taking the machine down).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 
@@ -14,6 +15,13 @@ namespace typemerge::app {
 // masks, two meshes) plus the process itself; 16 bytes a voxel and 64 MiB (629 MB here) leave
 // a thin margin.
 std::uint64_t conversion_memory_estimate(std::uint64_t voxels);
+
+// The voxels to pass to conversion_memory_estimate for a grid of `size` voxels spaced
+// `spacing_mm` apart: the grid itself, plus, when --voxel-size resamples it
+// (voxel_size_mm > 0), the resampled grid — both are held while resampling, and the surfaces
+// are made from the second (0.5 mm voxels on a 0.8 × 0.8 × 1.25 mm CT: 13 times the voxels).
+std::uint64_t working_voxels(const std::array<std::uint64_t, 3>& size,
+                             const std::array<double, 3>& spacing_mm, double voxel_size_mm);
 
 // Three quarters of the physical memory.
 std::uint64_t default_memory_budget();

@@ -234,6 +234,15 @@ TEST(BatchCommand, MemorySizesParse) {
   }
 }
 
+TEST(BatchCommand, WorkingVoxelsCountTheResampledGrid) {
+  EXPECT_EQ(working_voxels({512, 512, 100}, {0.8, 0.8, 1.25}, 0), 512u * 512u * 100u);
+  // 409.6 × 409.6 × 125 mm in 0.5 mm voxels: 821 × 821 × 251 more (ceil + 1 per axis).
+  EXPECT_EQ(working_voxels({512, 512, 100}, {0.8, 0.8, 1.25}, 0.5),
+            512u * 512u * 100u + 821u * 821u * 251u);
+  // An absurd voxel size saturates instead of wrapping around.
+  EXPECT_GT(working_voxels({512, 512, 100}, {0.8, 0.8, 1.25}, 1e-9), std::uint64_t{1} << 59);
+}
+
 // The isolation the batch relies on: exit codes, signals (a crash), captured output, kill.
 std::optional<ChildResult> wait_for(ChildProcess& child) {
   for (int i = 0; i < 2000; ++i) {

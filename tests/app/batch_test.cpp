@@ -318,6 +318,14 @@ TEST(Batch, TimeAndMemoryLimitsFailTheStudyNotTheBatch) {
   EXPECT_EQ(convert.exit_code, 1);
   EXPECT_NE(convert.err.find("more than --max-memory"), std::string::npos) << convert.err;
   EXPECT_FALSE(fs::exists(work / "x.stl"));
+  // The estimate counts the grid --voxel-size asks for (here hundreds of times the series).
+  const auto resampled = run_cli("convert " + (tree() / "siteC").string() +
+                                 " --preset bone --voxel-size 0.02 --max-memory 1G -o " +
+                                 (work / "x.stl").string());
+  EXPECT_EQ(resampled.exit_code, 1);
+  EXPECT_NE(resampled.err.find("more than --max-memory 1024 MiB"), std::string::npos)
+      << resampled.err;
+  EXPECT_FALSE(fs::exists(work / "x.stl"));
 #if !defined(__SANITIZE_ADDRESS__)
   // Just above the estimate the hard address-space limit decides: the allocation fails inside
   // the study's process, which says so; the batch reports it and goes on.
