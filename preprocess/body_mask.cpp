@@ -26,31 +26,42 @@ cv::Mat disk(double radius_mm, double spacing_x, double spacing_y) {
 using core::find_root;
 
 // Keeps the largest 6-connected component of `mask` (non-zero voxels; kept ones become 255).
-// OpenCV labels each slice (4-connected in-plane, with areas; slices in parallel), then labels
-// that overlap between neighbouring slices are joined by union-find. Replaces a voxel-by-voxel
-// 3D flood fill that took 14 % of a whole bone conversion (perf, abdomen). Returns the number
-// of components found.
+// OpenCV labels each slice (4-connected in-plane; slices in parallel) and each slice counts its
+// labels' areas, then labels that overlap between neighbouring slices are joined by
+// union-find. Replaces a voxel-by-voxel 3D flood fill that took 14 % of a whole bone
+// conversion (perf, abdomen). cv::connectedComponentsWithStats would give the areas too, but
+// its statistics pass is 5 to 7 times the labelling itself (134 slices of 512²: 240 ms
+// against 35 ms on one thread), so only the areas are counted here. Returns the number of
+// components found.
 std::size_t keep_largest_component(std::vector<std::uint8_t>& mask, const core::VolumeSize& size) {
   const int rows = static_cast<int>(size.ny), cols = static_cast<int>(size.nx);
   const std::size_t slice_voxels = static_cast<std::size_t>(size.nx * size.ny);
   const auto nz = static_cast<std::size_t>(size.nz);
   std::vector<cv::Mat> labels(nz);
-  std::vector<cv::Mat> stats(nz);
+  std::vector<std::vector<std::uint64_t>> areas(nz);  // per slice, indexed by label − 1
   tbb::parallel_for(std::size_t{0}, nz, [&](std::size_t k) {
     const cv::Mat slice(rows, cols, CV_8U, mask.data() + k * slice_voxels);
-    cv::Mat centroids;
-    cv::connectedComponentsWithStats(slice, labels[k], stats[k], centroids, 4, CV_32S);
+    const int count = cv::connectedComponents(slice, labels[k], 4, CV_32S);
+    areas[k].assign(static_cast<std::size_t>(std::max(count - 1, 0)), 0);
+    const std::int32_t* label = labels[k].ptr<std::int32_t>();
+    for (std::size_t p = 0; p < slice_voxels; ++p) {
+      if (label[p] != 0) ++areas[k][static_cast<std::size_t>(label[p] - 1)];
+    }
   });
   // Global label of slice k's label l (l >= 1): offset[k] + l - 1.
   std::vector<std::uint32_t> offset(nz + 1, 0);
-  for (std::size_t k = 0; k < nz; ++k) offset[k + 1] = offset[k] + std::uint32_t(stats[k].rows - 1);
+  for (std::size_t k = 0; k < nz; ++k) offset[k + 1] = offset[k] + std::uint32_t(areas[k].size());
   std::vector<std::uint32_t> parent(offset[nz]);
   std::iota(parent.begin(), parent.end(), 0u);
   for (std::size_t k = 0; k + 1 < nz; ++k) {
     const std::int32_t* below = labels[k].ptr<std::int32_t>();
     const std::int32_t* above = labels[k + 1].ptr<std::int32_t>();
+    std::int32_t last_below = 0, last_above = 0;  // runs of one pair are joined once
     for (std::size_t p = 0; p < slice_voxels; ++p) {
       if (below[p] == 0 || above[p] == 0) continue;
+      if (below[p] == last_below && above[p] == last_above) continue;
+      last_below = below[p];
+      last_above = above[p];
       const std::uint32_t a = find_root(parent, offset[k] + std::uint32_t(below[p]) - 1);
       const std::uint32_t b = find_root(parent, offset[k + 1] + std::uint32_t(above[p]) - 1);
       if (a != b) parent[std::max(a, b)] = std::min(a, b);
@@ -60,11 +71,11 @@ std::size_t keep_largest_component(std::vector<std::uint8_t>& mask, const core::
   std::vector<std::uint64_t> volume(parent.size(), 0);
   std::size_t components = 0;
   for (std::size_t k = 0; k < nz; ++k) {
-    for (int l = 1; l < stats[k].rows; ++l) {
-      const std::uint32_t global = offset[k] + std::uint32_t(l) - 1;
+    for (std::size_t l = 0; l < areas[k].size(); ++l) {
+      const std::uint32_t global = offset[k] + std::uint32_t(l);
       const std::uint32_t root = find_root(parent, global);
       if (root == global) ++components;
-      volume[root] += std::uint64_t(stats[k].at<std::int32_t>(l, cv::CC_STAT_AREA));
+      volume[root] += areas[k][l];
     }
   }
   std::uint32_t best = 0;
