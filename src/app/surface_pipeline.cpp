@@ -96,10 +96,14 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
 
   const double min_volume = finish.min_component_mm3.value_or(spec.min_component_mm3);
   const bool keep_largest = finish.keep_largest || spec.keep_largest;
+  const bool fill = finish.fill_cavities.value_or(spec.fill_cavities);
   if (keep_largest) {
-    run_step(result, "keep largest solid", [](core::TriangleMesh& mesh) {
-      return component_details(mesh::keep_largest_component(mesh));
-    });
+    // Filled at once when asked: one shell, without searching which cavities are its own.
+    const auto cavities = fill ? mesh::Cavities::fill : mesh::Cavities::keep;
+    run_step(result, fill ? "keep largest solid, cavities filled" : "keep largest solid",
+             [cavities](core::TriangleMesh& mesh) {
+               return component_details(mesh::keep_largest_component(mesh, cavities));
+             });
   }
   if (min_volume > 0) {
     run_step(result, "remove components under " + number(min_volume) + " mm3",
@@ -107,7 +111,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                return component_details(mesh::remove_small_components(mesh, min_volume));
              });
   }
-  if (finish.fill_cavities.value_or(spec.fill_cavities)) {
+  if (fill && !keep_largest) {
     run_step(result, "fill cavities", [](core::TriangleMesh& mesh) {
       return component_details(mesh::fill_cavities(mesh));
     });

@@ -155,6 +155,7 @@ class Extractor {
       load_slice(layer + 1, upper);
       last_slice_first_vertex_ = mesh_.positions.size();
       add_slice_vertices(layer + 1, upper);
+      last_slice_end_vertex_ = mesh_.positions.size();
       add_layer_vertices(layer, lower, upper);
       add_cubes(layer, lower, upper);
       std::swap(lower, upper);
@@ -166,6 +167,7 @@ class Extractor {
   std::vector<BoundaryCube>& cubes() { return cubes_; }
   std::size_t shared_vertices() const { return shared_vertices_; }
   std::size_t last_slice_first_vertex() const { return last_slice_first_vertex_; }
+  std::size_t last_slice_end_vertex() const { return last_slice_end_vertex_; }
 
  private:
   // Pass 1: padded copy of slice pz (padded index), inside bytes, row trims.
@@ -484,6 +486,7 @@ class Extractor {
   std::vector<BoundaryCube> cubes_;
   std::size_t shared_vertices_ = 0;          // leading vertices owned by the slab below
   std::size_t last_slice_first_vertex_ = 0;  // first vertex of the slab's top slice
+  std::size_t last_slice_end_vertex_ = 0;    // one past its last
 };
 
 void add_stats(AmbiguityStats& sum, const AmbiguityStats& s) {
@@ -571,5 +574,32 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
   });
   return mesh;
 }
+
+namespace detail {
+
+std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOptions& options) {
+  return Extractor(volume, iso, options).layers();
+}
+
+SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
+                            std::int64_t first, std::int64_t last) {
+  assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
+  std::vector<BoundaryCube> unused;  // the extractor records cubes when this is set
+  ExtractOptions with_cubes = options;
+  with_cubes.cubes = &unused;
+  with_cubes.stats = nullptr;
+  Extractor extractor(volume, iso, with_cubes);
+  extractor.run(first, last);
+  SurfacePiece piece;
+  piece.mesh = std::move(extractor.mesh());
+  piece.cubes = std::move(extractor.cubes());
+  piece.stats = extractor.stats();
+  piece.shared_vertices = extractor.shared_vertices();
+  piece.top_first = extractor.last_slice_first_vertex();
+  piece.top_end = extractor.last_slice_end_vertex();
+  return piece;
+}
+
+}  // namespace detail
 
 }  // namespace typemerge::core

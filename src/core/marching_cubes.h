@@ -100,6 +100,30 @@ namespace detail {
 // the face compute the same answer.
 bool face_joins_inside(float a, float b, float c, float d, float iso);
 
+// A piece of the surface: the cube layers [first, last) of the lattice (padded by one layer
+// on each side with close_borders), extracted alone as extract_isosurface's slabs are. Its
+// first shared_vertices vertices lie on slice `first`: when first > 0 they are, in the same
+// order, the vertices [top_first, top_end) of the piece that ends at `first` (slice `last` of
+// a piece holds exactly those). A piece is open where it is cut (mesh boundary along the
+// seam); stitching pieces by those vertices gives extract_isosurface's surface.
+struct SurfacePiece {
+  TriangleMesh mesh;
+  std::vector<BoundaryCube> cubes;  // its boundary cubes, triangles indexed in `mesh`
+  AmbiguityStats stats;
+  std::size_t shared_vertices = 0;
+  std::size_t top_first = 0;  // the vertices of slice `last`: [top_first, top_end)
+  std::size_t top_end = 0;
+};
+
+// Cube layers extract_isosurface sweeps for these options (0 when there is no cube).
+std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOptions& options);
+
+// Extracts one piece with its cube records, on the calling thread (options.threads, .stats
+// and .cubes are ignored).
+// Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
+SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
+                            std::int64_t first, std::int64_t last);
+
 }  // namespace detail
 
 }  // namespace typemerge::core

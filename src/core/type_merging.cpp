@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <limits>
 #include <numbers>
+#include <stdexcept>
 #include <utility>
 #include <memory>
 #include <vector>
@@ -229,14 +230,25 @@ class Merger {
   }
 
   // Compacted output: surviving vertices in original order, live triangles in original order.
-  TriangleMesh result() {
+  // `new_id` (optional) receives each input vertex's id in the output (kNoVertex: dropped).
+  TriangleMesh result(std::vector<VertexId>* id_map = nullptr) {
     TriangleMesh out;
     const std::size_t n = mesh_.positions.size();
-    std::vector<VertexId> new_id(n, kNoVertex);
+    std::vector<VertexId> local_ids;
+    std::vector<VertexId>& new_id = id_map != nullptr ? *id_map : local_ids;
+    new_id.assign(n, kNoVertex);
+    std::size_t triangles = 0;
     for (TriangleId t = 0; t < alive_.size(); ++t) {
       if (alive_[t] == 0) continue;
+      ++triangles;
       for (VertexId v : current(t)) new_id[v] = 0;
     }
+    // Exact sizes: the output is held (extract_type_merged keeps every piece until the end).
+    const auto vertices = static_cast<std::size_t>(
+        std::count(new_id.begin(), new_id.end(), VertexId{0}));
+    out.positions.reserve(vertices);
+    out.normals.reserve(vertices);
+    out.triangles.reserve(triangles);
     VertexId next = 0;
     for (std::size_t v = 0; v < n; ++v) {
       if (new_id[v] == kNoVertex) continue;
@@ -546,13 +558,28 @@ class Merger {
     if (fan_b.overflow) return reject(stats_.rejected_fan_size);
     std::array<std::array<VertexId, 3>, kMaxFan> corners_b;
     SmallSet<2 * kMaxFan> link_b;
+    std::array<int, 2 * kMaxFan> balance_b;
     for (int i = 0; i < fan_b.size; ++i) {
       corners_b[i] = current(fan_b.triangles[i]);
-      for (VertexId v : corners_b[i]) {
-        if (v != b) link_b.insert(v);
+      const auto& c = corners_b[i];
+      const int k = c[0] == b ? 0 : c[1] == b ? 1 : 2;
+      for (const int step : {1, 2}) {
+        const VertexId v = c[(k + step) % 3];
+        int j = 0;
+        while (j < link_b.size && link_b.items[j] != v) ++j;
+        if (j == link_b.size) {
+          link_b.insert(v);
+          if (link_b.overflow) return reject(stats_.rejected_fan_size);
+          balance_b[static_cast<std::size_t>(j)] = 0;
+        }
+        balance_b[static_cast<std::size_t>(j)] += step == 1 ? 1 : -1;
       }
     }
-    if (link_b.overflow) return reject(stats_.rejected_fan_size);
+    // Nor does a boundary vertex absorb one: a piece's seam (extract_type_merged) must stay as
+    // the piece beside it has it, and what is beyond a boundary cannot be judged from here.
+    for (int j = 0; j < link_b.size; ++j) {
+      if (balance_b[static_cast<std::size_t>(j)] != 0) return reject(stats_.rejected_boundary);
+    }
     // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
     // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
     int common = 0;
@@ -1087,8 +1114,12 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
 
 }  // namespace
 
-void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-                 const MergeOptions& options, MergeStats* stats) {
+namespace {
+
+// merge_types, also giving each input vertex's id in the output (id_map may be null).
+void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
+                       const MergeOptions& options, MergeStats* stats,
+                       std::vector<VertexId>* id_map) {
   assert(!options.type3 && "type 3 is not implemented");
   assert(options.run_cap >= 1 && options.epsilon_voxels >= 0.0);
   MergeStats local;
@@ -1158,23 +1189,142 @@ void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
     }
   }
   if (options.remove_slivers) serial.remove_slivers();
-  mesh = serial.result();
+  mesh = serial.result(id_map);
   local.triangles_after = mesh.triangles.size();
   local.vertices_after = mesh.positions.size();
   if (stats != nullptr) *stats = local;
 }
 
+// One piece of extract_type_merged, merged on its own and compacted.
+struct MergedPiece {
+  TriangleMesh mesh;
+  std::size_t shared = 0;     // its first `shared` vertices are the piece below's top slice
+  std::vector<VertexId> top;  // its top slice's vertices (ids in `mesh`), in seam order
+  MergeStats stats;
+  AmbiguityStats ambiguity;
+};
+
+MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
+                        const MergeOptions& options, std::int64_t first, std::int64_t last) {
+  detail::SurfacePiece piece = detail::extract_layers(volume, iso, extract, first, last);
+  MergedPiece out;
+  out.shared = piece.shared_vertices;
+  out.ambiguity = piece.stats;
+  MergeOptions serial = options;  // inside a piece: the paper's scan order, one thread
+  serial.slab_layers = 0;
+  serial.threads = 1;
+  std::vector<VertexId> new_id;
+  merge_and_compact(piece.mesh, piece.cubes, serial, &out.stats, &new_id);
+  // Seam vertices lie on the piece's boundary, which merging never changes: all of them stay,
+  // in order (compaction keeps the order), the shared ones first.
+  for (std::size_t v = 0; v < out.shared; ++v) {
+    if (new_id[v] != v) throw std::logic_error("type merging moved a seam vertex");
+  }
+  for (std::size_t v = piece.top_first; v < piece.top_end; ++v) {
+    if (new_id[v] == kNoVertex) throw std::logic_error("type merging dropped a seam vertex");
+    out.top.push_back(new_id[v]);
+  }
+  out.mesh = std::move(piece.mesh);
+  return out;
+}
+
+// Appends a merged piece to `out`, joining its shared vertices to `seam` (the output ids of
+// the top slice of the piece appended before it), and makes `seam` its own top slice.
+void append_piece(TriangleMesh& out, const MergedPiece& piece, std::vector<VertexId>& seam) {
+  if (piece.shared != seam.size()) {
+    throw std::logic_error("type merging: pieces disagree about their seam");
+  }
+  const std::size_t base = out.positions.size() - piece.shared;  // own vertex v → base + v
+  if (base + piece.mesh.positions.size() > std::numeric_limits<VertexId>::max()) {
+    throw std::length_error("surface has too many vertices for 32-bit indices");
+  }
+  auto output_id = [&](VertexId v) {
+    return v < piece.shared ? seam[v] : static_cast<VertexId>(base + v);
+  };
+  const auto own = static_cast<std::ptrdiff_t>(piece.shared);
+  out.positions.insert(out.positions.end(), piece.mesh.positions.begin() + own,
+                       piece.mesh.positions.end());
+  out.normals.insert(out.normals.end(), piece.mesh.normals.begin() + own, piece.mesh.normals.end());
+  for (const auto& t : piece.mesh.triangles) {
+    out.triangles.push_back({output_id(t[0]), output_id(t[1]), output_id(t[2])});
+  }
+  std::vector<VertexId> top;
+  top.reserve(piece.top.size());
+  for (VertexId v : piece.top) top.push_back(output_id(v));
+  seam = std::move(top);
+}
+
+void add_ambiguity(AmbiguityStats& sum, const AmbiguityStats& part) {
+  sum.boundary_cubes += part.boundary_cubes;
+  for (std::size_t k = 0; k < sum.cubes_with_ambiguous_faces.size(); ++k) {
+    sum.cubes_with_ambiguous_faces[k] += part.cubes_with_ambiguous_faces[k];
+  }
+  sum.joined_faces += part.joined_faces;
+  sum.centroid_vertices += part.centroid_vertices;
+}
+
+}  // namespace
+
+void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
+                 const MergeOptions& options, MergeStats* stats) {
+  merge_and_compact(mesh, cubes, options, stats, nullptr);
+}
+
 TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractOptions& extract,
                                  const MergeOptions& options, MergeStats* stats) {
-  MergeOptions merge = options;
-  merge.threads = std::max(detail::resolve_threads(options.threads),
-                           detail::resolve_threads(extract.threads));
-  std::vector<BoundaryCube> cubes;
-  ExtractOptions with_cubes = extract;
-  with_cubes.cubes = &cubes;
-  TriangleMesh mesh = extract_isosurface(volume, iso, with_cubes);
-  merge_types(mesh, cubes, merge, stats);
-  return mesh;
+  assert(volume.samples().size() == static_cast<std::size_t>(volume.size().voxels()));
+  if (extract.stats != nullptr) *extract.stats = {};
+  MergeStats total;
+  TriangleMesh out;
+  const std::int64_t layers = detail::cube_layer_count(volume, iso, extract);
+  const std::int64_t height =
+      options.slab_layers > 0 ? static_cast<std::int64_t>(options.slab_layers) : layers;
+  const std::int64_t count = layers > 0 ? (layers + height - 1) / height : 0;
+  const unsigned threads = std::max(detail::resolve_threads(options.threads),
+                                    detail::resolve_threads(extract.threads));
+  // Pieces are made `threads` at a time and appended in order, so at most that many merged
+  // pieces exist beside the output. The output is reserved ahead from the pieces seen so far
+  // (their average size × the pieces in all, plus a fifth): growing it by doubling would copy
+  // it, holding it twice, typically at its last and largest growth.
+  std::vector<VertexId> seam;
+  std::vector<MergedPiece> pieces;
+  for (std::int64_t wave = 0; wave < count; wave += threads) {
+    const auto n = static_cast<std::size_t>(std::min<std::int64_t>(threads, count - wave));
+    pieces.assign(n, MergedPiece{});
+    detail::run_parallel(n, threads, [&](std::size_t i, unsigned) {
+      const std::int64_t k = wave + static_cast<std::int64_t>(i);
+      pieces[i] = merge_piece(volume, iso, extract, options, k * height,
+                              std::min(layers, (k + 1) * height));
+    });
+    std::size_t vertices = out.positions.size();
+    std::size_t triangles = out.triangles.size();
+    for (const MergedPiece& piece : pieces) {
+      vertices += piece.mesh.positions.size() - piece.shared;
+      triangles += piece.mesh.triangles.size();
+    }
+    if (vertices > out.positions.capacity() || triangles > out.triangles.capacity()) {
+      const double done = static_cast<double>(wave) + static_cast<double>(n);
+      const double scale = 1.2 * static_cast<double>(count) / done;
+      const auto ahead = [&](std::size_t size) {
+        return std::max(size, static_cast<std::size_t>(scale * static_cast<double>(size)));
+      };
+      out.positions.reserve(ahead(vertices));
+      out.normals.reserve(ahead(vertices));
+      out.triangles.reserve(ahead(triangles));
+    }
+    for (MergedPiece& piece : pieces) {
+      append_piece(out, piece, seam);
+      add_stats(total, piece.stats);
+      total.triangles_before += piece.stats.triangles_before;
+      total.vertices_before += piece.stats.vertices_before - piece.shared;
+      if (extract.stats != nullptr) add_ambiguity(*extract.stats, piece.ambiguity);
+      piece = MergedPiece{};
+    }
+  }
+  total.triangles_after = out.triangles.size();
+  total.vertices_after = out.positions.size();
+  if (stats != nullptr) *stats = total;
+  return out;
 }
 
 }  // namespace typemerge::core

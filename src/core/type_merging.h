@@ -18,23 +18,34 @@
 //
 // Guarantees (for a closed, manifold MC mesh, i.e. consistent mode): the output is closed,
 // edge- and vertex-manifold, consistently oriented, with the same Euler characteristic and
-// number of components as the MC mesh. Vertices on a mesh boundary (close_borders off, or
-// classic mode's holes) never move, so boundaries are kept too.
+// number of components as the MC mesh. Vertices on a mesh boundary (close_borders off,
+// classic mode's holes, a piece's seams) never move and never absorb another vertex, so
+// boundaries are kept exactly.
 //
-// Memory (whole-volume approach of §4.5, "polygonize, merge, compact"): peak ≈ the MC mesh
-// (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube (lattice records from
-// the extractor) + 40 bytes per vertex (union-find parent, class ring, fan ring, class size,
-// class z extent, CSR offset and live end, distance witness and its version) + 18 bytes per
-// triangle (CSR incidence, alive flag, shape version) + 1 byte per triangle and worker (fan
-// slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4 bytes per cube row
-// (y, z) + the compacted output. No per-vertex heap allocation, no hash map: everything is a
-// flat array indexed by vertex, triangle or cube record.
+// Memory of merge_types (the whole-mesh approach of §4.5, "polygonize, merge, compact"):
+// peak ≈ the MC mesh (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube
+// (lattice records from the extractor) + 40 bytes per vertex (union-find parent, class ring,
+// fan ring, class size, class z extent, CSR offset and live end, distance witness and its
+// version) + 18 bytes per triangle (CSR incidence, alive flag, shape version) + 1 byte per
+// triangle and worker (fan slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4
+// bytes per cube row (y, z) + the compacted output — about 75 bytes per MC triangle. No
+// per-vertex heap allocation, no hash map: everything is a flat array indexed by vertex,
+// triangle or cube record.
 //
-// Parallelism (MergeOptions::slab_layers, threads): a merge only touches cubes C + d with d
-// forward and vertices within a cube of the moved ones, so slabs of cube layers whose vertex
-// regions are more than 2 voxels apart can be merged concurrently; the output is the same for
-// every thread count (it depends on slab_layers). Streaming the volume (spec §4.5) is not
-// done.
+// Streaming (extract_type_merged, spec §4.5's slabs): the lattice is cut into pieces of
+// MergeOptions::slab_layers cube layers. Each piece is extracted alone (marching cubes with
+// its cube records), merged alone in the paper's scan order, compacted and appended to the
+// output; its seams (the vertices of its first and last slice) lie on its boundary, so no
+// merge moves them or moves a vertex onto them, and the pieces join exactly where
+// extract_isosurface's slabs join. `threads` pieces are made at a time, so
+// peak ≈ the output mesh + threads × (75 bytes per MC triangle of one piece + 31 bytes × the
+// padded slice area, the extractor's slice buffers) — bounded by a few dozen slices whatever
+// the number of slices (abdomen CT, slices repeated up to N = 1072: README). The output is
+// the same for every thread count; it depends on slab_layers (runs stop at seams).
+//
+// Parallelism: pieces are independent, so `threads` of them run at once. merge_types, on a
+// whole mesh, runs slabs of cube layers whose vertex regions are more than 2 voxels apart
+// concurrently (MergeOptions::slab_layers, threads); its output does not depend on threads.
 #pragma once
 
 #include <array>
@@ -69,15 +80,17 @@ struct MergeOptions {
   double max_normal_to_gradient_deg = 80.0;
   // D6: collapse zero-area slivers after merging.
   bool remove_slivers = true;
-  // Slabs of this many cube layers (z) are merged concurrently, each in scan order, keeping
-  // away from the other slabs (a merge that needs a vertex within about 2.5 voxels of a slab
-  // border is left out); the cubes left out are merged in slabs shifted by half a slab, and
-  // what is still left serially in scan order. The output depends on slab_layers, never on
-  // threads. 0 = no slabs: one pass in the paper's scan order (serial). Each slab border
-  // costs some reduction (runs across it are cut): on the abdomen CT skin (134 slices)
-  // 16 → +4.5 % triangles against 0, 32 → +2.3 %, 48 → +1.4 %; bone ≤ +0.2 %.
+  // extract_type_merged: pieces of this many cube layers (z) are extracted and merged alone,
+  // their seams fixed (see Streaming above); 0 = one piece, the whole surface in the paper's
+  // scan order. Seams cost some reduction and smaller pieces less memory and time; abdomen CT
+  // (134 slices), 1 thread, triangles against one piece and time (`extract_bench`):
+  // skin −500 HU: 16 → +10.8 %, 1.86 s; 32 → +5.8 %, 2.23 s; 64 → +3.0 %, 2.54 s; one piece
+  // 3.13 s. Bone 300 HU: 16 → +2.1 %, 32 → +0.9 %, 64 → +0.5 %.
+  // merge_types: slabs of this many layers are merged concurrently, each in scan order,
+  // keeping away from the other slabs; the cubes left out are merged in slabs shifted by
+  // half a slab, and what is still left serially in scan order (0 = one serial pass).
   unsigned slab_layers = 32;
-  // Worker threads for the slab phase: 0 = hardware concurrency, 1 = serial.
+  // Worker threads (pieces, or merge_types' slab phase): 0 = hardware concurrency.
   unsigned threads = 1;
 };
 
@@ -95,7 +108,7 @@ struct MergeStats {
 
   std::size_t collapses_tried = 0;  // vertex moves of merges and of the sliver clean-up
   std::size_t collapses_done = 0;
-  std::size_t rejected_boundary = 0;  // the moving vertex is on a mesh boundary
+  std::size_t rejected_boundary = 0;  // the moving or absorbing vertex is on a boundary
   std::size_t rejected_link = 0;      // not an edge, or the link condition fails
   std::size_t rejected_fan_size = 0;  // fan larger than the fixed buffers (kMaxFan)
   std::size_t rejected_normal = 0;    // a triangle would turn by more than the limit
@@ -120,8 +133,10 @@ struct MergeStats {
 void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
                  const MergeOptions& options = {}, MergeStats* stats = nullptr);
 
-// extract_isosurface followed by merge_types. `extract.cubes` is ignored (used internally).
-// The merge runs on the larger of options.threads and extract.threads (same output).
+// extract_isosurface followed by merge_types, streamed in pieces of options.slab_layers cube
+// layers (see Streaming above). `extract.cubes` is ignored; `extract.stats` receives the
+// ambiguity statistics of the whole surface. Runs on the larger of options.threads and
+// extract.threads; the output does not depend on it.
 TriangleMesh extract_type_merged(const Volume& volume, float iso,
                                  const ExtractOptions& extract = {},
                                  const MergeOptions& options = {}, MergeStats* stats = nullptr);

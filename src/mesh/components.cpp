@@ -261,7 +261,7 @@ class Containment {
 
 }  // namespace
 
-ComponentReport keep_largest_component(core::TriangleMesh& mesh) {
+ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities cavities) {
   const Components c = label_components(mesh);
   // The largest solid: the outward shell enclosing the most volume. Cavity walls (negative
   // volume) compete only when there is no outward shell at all (an inside-out mesh).
@@ -281,7 +281,7 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh) {
   std::vector<bool> remove(c.count, true);
   if (c.count == 0) return remove_components(mesh, c, remove);
   remove[largest] = false;
-  if (!any_outward) return remove_components(mesh, c, remove);
+  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove);
 
   // Its cavities stay: a cavity wall whose innermost enclosing outward shell is the largest.
   // (A cavity of an island floating inside one of its cavities belongs to the island.)

@@ -28,12 +28,16 @@ struct ComponentReport {
   Validity validity;            // of the result
 };
 
+enum class Cavities { keep, fill };
+
 // Keeps the largest solid: the outward shell enclosing the most volume (ties: more triangles,
 // then the first) with the walls of its own cavities, and removes every other component —
 // other solids, their cavities, and islands floating in its cavities. A skull keeps its
-// cranial cavity (fill_cavities afterwards makes it one shell). A mesh with no outward shell
-// keeps its component of largest |signed volume|.
-ComponentReport keep_largest_component(core::TriangleMesh& mesh);
+// cranial cavity. With Cavities::fill its cavity walls go too: one shell, as fill_cavities
+// afterwards would leave it, without searching for them. A mesh with no outward shell keeps
+// its component of largest |signed volume|.
+ComponentReport keep_largest_component(core::TriangleMesh& mesh,
+                                       Cavities cavities = Cavities::keep);
 
 // Removes every component whose |signed volume| is < min_volume (mesh units³, mm³ after
 // to_patient). Cavities count by their size too: a cavity smaller than min_volume is filled.

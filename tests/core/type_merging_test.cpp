@@ -371,11 +371,15 @@ TEST(TypeMerging, BlobsStayWatertightAndManifold) {
 
 // ---- Determinism and the one-call API ------------------------------------------------------
 
-TEST(TypeMerging, DeterministicAndEqualToOneCall) {
+// One piece (slab_layers = 0) is the whole surface merged in the paper's plain scan order,
+// which is what merge_types does with slab_layers = 0; and it is deterministic.
+TEST(TypeMerging, OnePieceIsTheWholeSurfaceMergedInScanOrder) {
   const Volume volume = sphere_volume(30, 11.7, 14.1, 14.3, 14.6);
-  const Extracted a = extract_both(volume, 0.0f, kClosed);
-  const Extracted b = extract_both(volume, 0.0f, kClosed);
-  const TriangleMesh c = extract_type_merged(volume, 0.0f, kClosed);
+  MergeOptions whole;
+  whole.slab_layers = 0;
+  const Extracted a = extract_both(volume, 0.0f, kClosed, whole);
+  const Extracted b = extract_both(volume, 0.0f, kClosed, whole);
+  const TriangleMesh c = extract_type_merged(volume, 0.0f, kClosed, whole);
   EXPECT_EQ(a.tm.triangles, b.tm.triangles);
   EXPECT_EQ(a.tm.positions, b.tm.positions);
   EXPECT_EQ(a.tm.triangles, c.triangles);
@@ -433,6 +437,43 @@ TEST(TypeMerging, OutputIsIdenticalForAnyThreadCount) {
         EXPECT_EQ(many.tm.normals, one.tm.normals);
         EXPECT_EQ(many.stats.collapses_done, one.stats.collapses_done);
         EXPECT_EQ(many.stats.cubes_deferred, one.stats.cubes_deferred);
+      }
+    }
+  }
+}
+
+// extract_type_merged in pieces of slab_layers cube layers, each merged alone with its seams
+// fixed, then stitched: the same guarantees as one piece (closed, manifold, MC's topology,
+// every MC vertex within epsilon), the MC counts in the statistics, and one output for any
+// thread count. Pieces of one layer are the extreme case: every vertex is on a seam.
+TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
+  const std::vector<Volume> volumes = slab_test_volumes();
+  for (std::size_t i = 0; i < volumes.size(); ++i) {
+    SCOPED_TRACE(i);
+    const float iso = i < 4 ? 0.5f : 0.0f;
+    const TriangleMesh mc = extract_isosurface(volumes[i], iso, kClosed);
+    for (unsigned slab_layers : {1u, 3u, 4u, 16u}) {
+      SCOPED_TRACE(slab_layers);
+      MergeOptions options;
+      options.slab_layers = slab_layers;
+      Extracted one{mc, {}, {}};
+      one.tm = extract_type_merged(volumes[i], iso, kClosed, options, &one.stats);
+      expect_same_topology(one);
+      EXPECT_TRUE(check_mesh(one.tm).closed_manifold());
+      EXPECT_EQ(one.stats.vertices_before, mc.positions.size());
+      EXPECT_LE(max_vertex_to_mesh_distance(mc, one.tm), options.epsilon_voxels + 1e-6);
+      if (slab_layers >= 4) {
+        EXPECT_LT(one.tm.triangles.size(), mc.triangles.size());
+      }
+      for (unsigned threads : {2u, 3u}) {
+        SCOPED_TRACE(threads);
+        options.threads = threads;
+        MergeStats stats;
+        const TriangleMesh many = extract_type_merged(volumes[i], iso, kClosed, options, &stats);
+        EXPECT_EQ(many.triangles, one.tm.triangles);
+        EXPECT_EQ(many.positions, one.tm.positions);
+        EXPECT_EQ(many.normals, one.tm.normals);
+        EXPECT_EQ(stats.collapses_done, one.stats.collapses_done);
       }
     }
   }

@@ -136,6 +136,13 @@ TEST(Components, KeepLargestKeepsTheCavityOfTheLargestSolidOnly) {
   EXPECT_EQ(filled.components_after, 1u);
   const double solid = volume_alone({centre.x, centre.y, centre.z, 12.0});
   EXPECT_NEAR(filled.kept_volume, solid, 1e-9 * solid);
+
+  // Filled at once: the same single shell.
+  core::TriangleMesh again = test::hollow_shell(kN, centre, 12.0, 7.0, {island, beside});
+  const ComponentReport at_once = keep_largest_component(again, Cavities::fill);
+  EXPECT_EQ(at_once.components_after, 1u);
+  EXPECT_EQ(again.triangles.size(), mesh.triangles.size());
+  EXPECT_NEAR(at_once.kept_volume, solid, 1e-9 * solid);
 }
 
 TEST(Components, FillCavitiesLeavesSolidsAlone) {
