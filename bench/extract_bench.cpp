@@ -173,11 +173,11 @@ int main(int argc, char** argv) {
                       mc_check.components);
           const auto& s = merge_stats;
           std::printf("    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), capped %zu, "
-                      "abandoned %zu, deferred %zu; collapses %zu of %zu; rejected: boundary %zu "
+                      "abandoned %zu; collapses %zu of %zu; rejected: boundary %zu "
                       "link %zu fan %zu normal %zu gradient %zu distance %zu class %zu\n",
                       s.cubes_merged_by_type[0], s.cubes_merged_by_type[1],
                       s.cubes_merged_by_type[2], s.hexagon_merges, s.minor_merges, s.runs_capped,
-                      s.merges_abandoned, s.cubes_deferred, s.collapses_done, s.collapses_tried,
+                      s.merges_abandoned, s.collapses_done, s.collapses_tried,
                       s.rejected_boundary, s.rejected_link, s.rejected_fan_size,
                       s.rejected_normal, s.rejected_gradient, s.rejected_distance,
                       s.rejected_class_size);

@@ -7,8 +7,6 @@
 //   3. merge, cubes in scan order (z, y, x): pick a direction (D2, D3, FLAG of §4.1), then
 //      collapse each moving pair of C + d (D1) with the checks of §4.5, and remove the
 //      slivers the merge made (D6) — all in one transaction that is undone if any step fails;
-//      With slab_layers > 0 step 3 runs in three phases (merge_types): fixed z slabs
-//      concurrently, the cubes they left in slabs shifted by half a slab, the rest serially;
 //   4. a final sliver pass (finds none on every test surface; kept as a guard); 5. compact.
 //
 // Mesh state during merging: triangles keep their original vertex ids; a union-find `parent_`
@@ -30,7 +28,6 @@
 #include <numbers>
 #include <stdexcept>
 #include <utility>
-#include <memory>
 #include <vector>
 
 #include "core/cube_tables.h"
@@ -184,15 +181,12 @@ struct Fan {
   bool overflow = false;
 };
 
-// The mesh and lattice state every worker of merge_types edits (see Merger). Workers of the
-// slab phase edit disjoint parts of it (Merger::in_region).
+// The mesh and lattice state a Merger edits.
 struct MergeState {
   std::vector<VertexId> parent;       // union-find: the vertex that absorbed this one
   std::vector<VertexId> next_member;  // ring through each class
   std::vector<VertexId> next_fan;     // ring through the members with live triangles
   std::vector<std::uint32_t> class_size;  // members of the class, valid at its root
-  std::vector<float> z_low;   // lowest z of a member of the class, valid at its root
-  std::vector<float> z_high;  // highest z
   std::vector<std::uint32_t> offset;  // CSR vertex → incident triangles
   std::vector<TriangleId> incident;
   std::vector<std::uint32_t> live_end;  // end of the still-live prefix of each CSR list
@@ -273,9 +267,6 @@ class Merger {
     next_member_.resize(n);
     witness_.assign(n, kNoTriangle);
     class_size_.assign(n, 1);
-    z_low_.resize(n);
-    for (std::size_t v = 0; v < n; ++v) z_low_[v] = mesh_.positions[v][2];
-    z_high_ = z_low_;
     witness_version_.assign(n, kNoVersion);
     version_.assign(m, 0);
     for (VertexId v = 0; v < n; ++v) parent_[v] = next_member_[v] = v;
@@ -505,7 +496,6 @@ class Merger {
     if (a == b) return true;
     ++stats_.collapses_tried;
     pending_witness_.clear();
-    if (!in_region(a) || !in_region(b)) return leave_region();
     if (options_.max_class_vertices != 0 &&
         class_size_[a] + class_size_[b] > options_.max_class_vertices) {
       return reject(stats_.rejected_class_size);
@@ -545,9 +535,6 @@ class Merger {
       }
     }
     if (link_a.overflow) return reject(stats_.rejected_fan_size);
-    for (int j = 0; j < link_a.size; ++j) {
-      if (!in_region(link_a.items[j])) return leave_region();
-    }
     for (int j = 0; j < link_a.size; ++j) {
       if (balance[static_cast<std::size_t>(j)] != 0) return reject(stats_.rejected_boundary);
     }
@@ -647,9 +634,7 @@ class Merger {
     }
 
     // Apply: a joins b's class; the two triangles on the edge (a, b) die.
-    JournalEntry entry{a, b, {0, 0}, 0, z_low_[b], z_high_[b]};
-    z_low_[b] = std::min(z_low_[b], z_low_[a]);
-    z_high_[b] = std::max(z_high_[b], z_high_[a]);
+    JournalEntry entry{a, b, {0, 0}, 0};
     parent_[a] = b;
     std::swap(next_member_[a], next_member_[b]);
     std::swap(next_fan_[a], next_fan_[b]);
@@ -687,8 +672,6 @@ class Merger {
     VertexId b;
     std::array<TriangleId, 2> killed;
     int killed_count;
-    float b_low;  // z_low_ and z_high_ of b before
-    float b_high;
   };
 
   void begin_transaction() {
@@ -721,8 +704,6 @@ class Merger {
       std::swap(next_fan_[it->a], next_fan_[it->b]);
       parent_[it->a] = it->a;
       class_size_[it->b] -= class_size_[it->a];
-      z_low_[it->b] = it->b_low;
-      z_high_[it->b] = it->b_high;
       // a's triangles take back their old shape: a new version, so that witnesses found on
       // the undone shape are not trusted.
       Fan fan_a;
@@ -759,24 +740,12 @@ class Merger {
             changed = true;
             touched.insert(end);
           }
-          if (out_of_region_) return false;
         }
       }
       if (touched.overflow) return false;
       if (!found) return true;
       if (!changed) return false;
     }
-    return false;
-  }
-
-  // Slab phases: may this worker read and change root v and its class? Yes when the whole
-  // class (its z extent) lies in the region.
-  bool in_region(VertexId v) const {
-    return z_low_[v] >= region_lo_ && z_high_[v] <= region_hi_;
-  }
-
-  bool leave_region() {
-    out_of_region_ = true;
     return false;
   }
 
@@ -842,67 +811,16 @@ class Merger {
 
   // ---- Merging (spec §4.1 with §4.4 decisions) ----------------------------------------------
 
-  // Every cube record in scan order (slab_layers = 0).
+  // Every cube record in scan order.
   void merge_all() {
     for (std::size_t r = 0; r < cubes_.size(); ++r) merge_cube(r);
   }
 
-  // A slab phase for cube layers [z0, z1) (first and last: the slab is the lowest or highest
-  // of its phase): merges, in the order given, the records of `records` (in scan order, all in
-  // the slab) that it can merge inside the slab's region and appends the others to
-  // `deferred`.
-  void merge_slab(std::int32_t z0, std::int32_t z1, bool first, bool last,
-                  std::span<const std::size_t> records, std::vector<std::size_t>& deferred) {
-    enter_slab(z0, z1, first, last);
-    for (std::size_t r : records) {
-      if (!merge_cube(r)) deferred.push_back(r);
-    }
-    leave_slab();
-  }
-
-  // The same for every record of layers [z0, z1).
-  void merge_slab(std::int32_t z0, std::int32_t z1, bool first, bool last,
-                  std::vector<std::size_t>& deferred) {
-    enter_slab(z0, z1, first, last);
-    const std::size_t end = layer_begin(z1);
-    for (std::size_t r = layer_begin(z0); r < end; ++r) {
-      if (!merge_cube(r)) deferred.push_back(r);
-    }
-    leave_slab();
-  }
-
-  // Region: the vertices a collapse of this slab may read or change (whole classes, see
-  // in_region). A collapse also reads the corners of the triangles around them (one cube, at
-  // most 1 voxel away in z) and drops dead triangles from those corners' lists; regions of
-  // concurrent slabs are more than 2 voxels apart, so no vertex, triangle or list is used by
-  // two of them. Cube records: only layers [z0, z1) (a direction into layer z1 defers the
-  // cube).
-  void enter_slab(std::int32_t z0, std::int32_t z1, bool first, bool last) {
-    region_lo_ = first ? -std::numeric_limits<float>::infinity() : static_cast<float>(z0) + 1.0f;
-    region_hi_ = last ? std::numeric_limits<float>::infinity() : static_cast<float>(z1) - 1.25f;
-    layer_end_ = last ? std::numeric_limits<std::int32_t>::max() : z1;
-  }
-
-  void leave_slab() {
-    region_lo_ = -std::numeric_limits<float>::infinity();
-    region_hi_ = std::numeric_limits<float>::infinity();
-    layer_end_ = std::numeric_limits<std::int32_t>::max();
-  }
-
-  // First record of cube layer z (records are in scan order).
-  std::size_t layer_begin(std::int32_t z) const {
-    if (cubes_.empty() || z <= z_min_) return 0;
-    if (z - z_min_ >= z_rows_) return cubes_.size();
-    return row_start_[static_cast<std::size_t>(row_of(y_min_, z))];
-  }
-
-  // Spec §4.1 for one cube. False when the cube must be merged in the serial phase instead
-  // (only in the slab phase: it needs a cube record or a vertex outside the slab); nothing
-  // has changed then, statistics included.
-  bool merge_cube(std::size_t r) {
+  // Spec §4.1 for one cube.
+  void merge_cube(std::size_t r) {
     const unsigned index = cubes_[r].index;
     const TypeEntry& entry = type_of(index);
-    if (entry.type == CubeType::kNone) return true;  // type 4 and every ambiguous cube (D11)
+    if (entry.type == CubeType::kNone) return;  // type 4 and every ambiguous cube (D11)
     unsigned candidates = entry.merge;
     if (entry.type == CubeType::kHexagon && options_.hexagon_all_lines) candidates = entry.lines;
     // FLAG (§4.1): a cube absorbed along d may only continue the run along d.
@@ -910,8 +828,7 @@ class Merger {
 
     // D2 + D3: the direction with the longest look-ahead run of the same raw index whose
     // next cube is not yet absorbed; ties go to the table order (primary first). In scan
-    // order the next cube is never started; after a slab phase it may be (it began its own
-    // run), and is then not joined.
+    // order the next cube has not started a run of its own yet.
     int best = -1;
     int best_length = 0;
     for (int d = 0; d < kMergeDirectionCount; ++d) {
@@ -919,7 +836,6 @@ class Merger {
       const std::int64_t next = step(r, d);
       if (next < 0) continue;
       const std::size_t n = static_cast<std::size_t>(next);
-      if (cubes_[n].z >= layer_end_) return false;
       if (cubes_[n].index != index || flag_[n] != kNoMergeDirection || started_[n] != 0) {
         continue;
       }
@@ -934,18 +850,13 @@ class Merger {
         best_length = length;
       }
     }
-    if (best < 0) return true;
+    if (best < 0) return;
     if (run_[r] >= options_.run_cap) {  // D9
       ++stats_.runs_capped;
-      return true;
+      return;
     }
 
     // D1: the vertices of C + d on the rear edges move onto its front edges.
-    const bool in_slab = layer_end_ != std::numeric_limits<std::int32_t>::max() ||
-                         region_lo_ != -std::numeric_limits<float>::infinity();
-    MergeStats before;
-    if (in_slab) before = stats_;
-    out_of_region_ = false;
     const std::size_t next = static_cast<std::size_t>(step(r, best));
     const unsigned cut = kCubeCutEdges[index];
     const MoveRow& row = kMoveTable[best];
@@ -960,20 +871,16 @@ class Merger {
       touched.insert(edge_vertex(next, t));
     }
     bool slivers_ok = true;
-    if (ok && !out_of_region_) {
+    if (ok) {
       slivers_ok = clean_touched_slivers(touched);
       ok = slivers_ok;
     }
-    if (!ok || out_of_region_) {
+    if (!ok) {
       // All or nothing: a partly merged cube would break the run structure FLAG assumes.
       rollback();
-      if (out_of_region_) {
-        stats_ = before;
-        return false;
-      }
       if (!slivers_ok) ++stats_.rejected_sliver;
       ++stats_.merges_abandoned;
-      return true;
+      return;
     }
     commit();
     flag_[next] = static_cast<std::uint8_t>(best);
@@ -983,7 +890,6 @@ class Merger {
     if (entry.type == CubeType::kHexagon) ++stats_.hexagon_merges;
     if (entry.type == CubeType::kMinor) ++stats_.minor_merges;
     ++stats_.merges_by_direction[static_cast<std::size_t>(best)];
-    return true;
   }
 
   // ---- Sliver clean-up (D6) -----------------------------------------------------------------
@@ -1053,8 +959,6 @@ class Merger {
   std::vector<VertexId>& next_member_ = state_.next_member;
   std::vector<VertexId>& next_fan_ = state_.next_fan;
   std::vector<std::uint32_t>& class_size_ = state_.class_size;
-  std::vector<float>& z_low_ = state_.z_low;
-  std::vector<float>& z_high_ = state_.z_high;
   std::vector<std::uint32_t>& offset_ = state_.offset;
   std::vector<TriangleId>& incident_ = state_.incident;
   std::vector<std::uint32_t>& live_end_ = state_.live_end;
@@ -1077,20 +981,9 @@ class Merger {
   bool in_transaction_ = false;
   std::size_t slivers_at_begin_ = 0;
   std::vector<JournalEntry> journal_;  // collapses of the open transaction (reused buffer)
-
-  // The slab this worker merges (slab phase), or everything (serial phase): vertices it may
-  // read or change, and the first cube layer it may not touch.
-  float region_lo_ = -std::numeric_limits<float>::infinity();
-  float region_hi_ = std::numeric_limits<float>::infinity();
-  std::int32_t layer_end_ = std::numeric_limits<std::int32_t>::max();
-  bool out_of_region_ = false;  // a collapse of the current merge needed a vertex outside
 };
 
 
-
-std::int32_t floor_div(std::int32_t a, std::int32_t b) {
-  return a >= 0 ? a / b : -((-a + b - 1) / b);
-}
 
 void add_stats(MergeStats& sum, const MergeStats& part) {
   for (std::size_t i = 0; i < sum.cubes_merged_by_type.size(); ++i) {
@@ -1107,8 +1000,7 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
       &MergeStats::rejected_link,       &MergeStats::rejected_fan_size,
       &MergeStats::rejected_normal,     &MergeStats::rejected_gradient,
       &MergeStats::rejected_distance,   &MergeStats::rejected_class_size,
-      &MergeStats::sliver_collapses,    &MergeStats::slivers_left,
-      &MergeStats::cubes_deferred};
+      &MergeStats::sliver_collapses,    &MergeStats::slivers_left};
   for (auto counter : counters) sum.*counter += part.*counter;
 }
 
@@ -1126,70 +1018,11 @@ void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
   local.triangles_before = mesh.triangles.size();
   local.vertices_before = mesh.positions.size();
   MergeState state;
-  Merger serial(mesh, cubes, options, state, local);
-  serial.build();
-  if (options.slab_layers == 0 || cubes.empty()) {
-    serial.merge_all();
-  } else {
-    // Slab phases: fixed slabs of slab_layers (h) cube layers, counted from layer −1 (the
-    // first layer with close_borders), merged concurrently; then the cubes they left, in
-    // slabs shifted by h / 2; then, serially in scan order, the cubes still left. Nothing
-    // depends on the thread count.
-    const std::int32_t height = static_cast<std::int32_t>(options.slab_layers);
-    const std::int32_t z_first = cubes.front().z;
-    const std::int32_t z_last = cubes.back().z;
-    const std::int32_t slab_first = (z_first + 1) / height;
-    const std::int32_t slab_last = (z_last + 1) / height;
-    const std::size_t slab_count = static_cast<std::size_t>(slab_last - slab_first + 1);
-    const unsigned threads =
-        std::min<unsigned>(detail::resolve_threads(options.threads),
-                           static_cast<unsigned>(std::min<std::size_t>(slab_count, 1024)));
-    struct alignas(64) WorkerStats {  // own cache lines: counters change at every collapse
-      MergeStats stats;
-    };
-    std::vector<WorkerStats> worker_stats(threads);
-    std::vector<std::unique_ptr<Merger>> workers;
-    for (unsigned w = 0; w < threads; ++w) {
-      workers.push_back(
-          std::make_unique<Merger>(mesh, cubes, options, state, worker_stats[w].stats));
-    }
-    // Phase 1: slabs [k·h − 1, (k + 1)·h − 1).
-    std::vector<std::vector<std::size_t>> deferred(slab_count);
-    detail::run_parallel(slab_count, threads, [&](std::size_t i, unsigned w) {
-      const std::int32_t slab = slab_first + static_cast<std::int32_t>(i);
-      workers[w]->merge_slab(slab * height - 1, (slab + 1) * height - 1, i == 0,
-                             i + 1 == slab_count, deferred[i]);
-    });
-    // Phase 2: the cubes phase 1 left (near its slab borders), in slabs shifted by h / 2, so
-    // that those borders lie inside them.
-    std::vector<std::size_t> left;
-    for (const auto& list : deferred) left.insert(left.end(), list.begin(), list.end());
-    const std::int32_t shift = height / 2 + 1;
-    std::vector<std::span<const std::size_t>> groups;
-    std::vector<std::int32_t> group_slab;
-    for (std::size_t i = 0; i < left.size();) {
-      const std::int32_t slab = floor_div(cubes[left[i]].z + shift, height);
-      std::size_t j = i;
-      while (j < left.size() && floor_div(cubes[left[j]].z + shift, height) == slab) ++j;
-      groups.emplace_back(left.data() + i, j - i);
-      group_slab.push_back(slab);
-      i = j;
-    }
-    std::vector<std::vector<std::size_t>> deferred2(groups.size());
-    detail::run_parallel(groups.size(), threads, [&](std::size_t i, unsigned w) {
-      workers[w]->merge_slab(group_slab[i] * height - shift, (group_slab[i] + 1) * height - shift,
-                             i == 0, i + 1 == groups.size(), groups[i], deferred2[i]);
-    });
-    workers.clear();
-    for (const WorkerStats& part : worker_stats) add_stats(local, part.stats);
-    // Phase 3: what is left, serially in scan order.
-    for (const auto& list : deferred2) {
-      local.cubes_deferred += list.size();
-      for (std::size_t r : list) serial.merge_cube(r);
-    }
-  }
-  if (options.remove_slivers) serial.remove_slivers();
-  mesh = serial.result(id_map);
+  Merger merger(mesh, cubes, options, state, local);
+  merger.build();
+  merger.merge_all();
+  if (options.remove_slivers) merger.remove_slivers();
+  mesh = merger.result(id_map);
   local.triangles_after = mesh.triangles.size();
   local.vertices_after = mesh.positions.size();
   if (stats != nullptr) *stats = local;
@@ -1210,11 +1043,8 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
-  MergeOptions serial = options;  // inside a piece: the paper's scan order, one thread
-  serial.slab_layers = 0;
-  serial.threads = 1;
   std::vector<VertexId> new_id;
-  merge_and_compact(piece.mesh, piece.cubes, serial, &out.stats, &new_id);
+  merge_and_compact(piece.mesh, piece.cubes, options, &out.stats, &new_id);
   // Seam vertices lie on the piece's boundary, which merging never changes: all of them stay,
   // in order (compaction keeps the order), the shared ones first.
   for (std::size_t v = 0; v < out.shared; ++v) {

@@ -44,8 +44,7 @@
 // the same for every thread count; it depends on slab_layers (runs stop at seams).
 //
 // Parallelism: pieces are independent, so `threads` of them run at once. merge_types, on a
-// whole mesh, runs slabs of cube layers whose vertex regions are more than 2 voxels apart
-// concurrently (MergeOptions::slab_layers, threads); its output does not depend on threads.
+// whole mesh, is one serial pass in scan order.
 #pragma once
 
 #include <array>
@@ -85,12 +84,10 @@ struct MergeOptions {
   // scan order. Seams cost some reduction and smaller pieces less memory and time; abdomen CT
   // (134 slices), 1 thread, triangles against one piece and time (`extract_bench`):
   // skin −500 HU: 16 → +10.8 %, 1.86 s; 32 → +5.8 %, 2.23 s; 64 → +3.0 %, 2.54 s; one piece
-  // 3.13 s. Bone 300 HU: 16 → +2.1 %, 32 → +0.9 %, 64 → +0.5 %.
-  // merge_types: slabs of this many layers are merged concurrently, each in scan order,
-  // keeping away from the other slabs; the cubes left out are merged in slabs shifted by
-  // half a slab, and what is still left serially in scan order (0 = one serial pass).
+  // 3.13 s. Bone 300 HU: 16 → +2.1 %, 32 → +0.9 %, 64 → +0.5 %. (merge_types ignores it.)
   unsigned slab_layers = 32;
-  // Worker threads (pieces, or merge_types' slab phase): 0 = hardware concurrency.
+  // extract_type_merged: pieces made at once; 0 = hardware concurrency. (merge_types is
+  // serial.)
   unsigned threads = 1;
 };
 
@@ -101,7 +98,6 @@ struct MergeStats {
   std::size_t hexagon_merges = 0;
   std::size_t minor_merges = 0;
   std::array<std::size_t, kMergeDirectionCount> merges_by_direction{};
-  std::size_t cubes_deferred = 0;  // cubes the slab phase left to the serial phase
   std::size_t runs_capped = 0;  // a merge was possible but the run had run_cap cubes
   std::size_t merges_abandoned = 0;  // some collapse was rejected: the merge was undone
   std::size_t rejected_sliver = 0;   // of those: a sliver it made could not be removed
@@ -125,8 +121,8 @@ struct MergeStats {
   std::size_t vertices_after = 0;
 };
 
-// Merges `mesh` in place and compacts it (unused vertices dropped, the rest renumbered in
-// their original order, triangles kept in their original order).
+// Merges `mesh` in place, serially in scan order, and compacts it (unused vertices dropped,
+// the rest renumbered in their original order, triangles kept in their original order).
 // Preconditions: `mesh` and `cubes` come from one extract_isosurface call (cubes = its
 // ExtractOptions::cubes output) and have not been modified; options.type3 is false;
 // options.run_cap >= 1; options.epsilon_voxels >= 0.

@@ -372,13 +372,13 @@ TEST(TypeMerging, BlobsStayWatertightAndManifold) {
 // ---- Determinism and the one-call API ------------------------------------------------------
 
 // One piece (slab_layers = 0) is the whole surface merged in the paper's plain scan order,
-// which is what merge_types does with slab_layers = 0; and it is deterministic.
+// which is what merge_types does; and it is deterministic.
 TEST(TypeMerging, OnePieceIsTheWholeSurfaceMergedInScanOrder) {
   const Volume volume = sphere_volume(30, 11.7, 14.1, 14.3, 14.6);
   MergeOptions whole;
   whole.slab_layers = 0;
-  const Extracted a = extract_both(volume, 0.0f, kClosed, whole);
-  const Extracted b = extract_both(volume, 0.0f, kClosed, whole);
+  const Extracted a = extract_both(volume, 0.0f, kClosed);
+  const Extracted b = extract_both(volume, 0.0f, kClosed);
   const TriangleMesh c = extract_type_merged(volume, 0.0f, kClosed, whole);
   EXPECT_EQ(a.tm.triangles, b.tm.triangles);
   EXPECT_EQ(a.tm.positions, b.tm.positions);
@@ -387,9 +387,8 @@ TEST(TypeMerging, OnePieceIsTheWholeSurfaceMergedInScanOrder) {
   EXPECT_EQ(a.tm.normals, c.normals);
 }
 
-// The slab phase: with slabs of 4 layers every test volume has several slabs and most cubes
-// lie near a slab border. The output must not depend on the thread count, and must keep every
-// guarantee; slab_layers = 0 is the plain scan order.
+// Volumes for the pieces of extract_type_merged: with pieces of 4 layers every one has several
+// pieces and most cubes lie near a seam.
 std::vector<Volume> slab_test_volumes() {
   std::vector<Volume> volumes;
   for (unsigned seed = 1; seed <= 4; ++seed) volumes.push_back(noise_volume(11, 10, 13, seed));
@@ -410,36 +409,6 @@ std::vector<Volume> slab_test_volumes() {
     }));
   }
   return volumes;
-}
-
-TEST(TypeMerging, OutputIsIdenticalForAnyThreadCount) {
-  const std::vector<Volume> volumes = slab_test_volumes();
-  for (std::size_t i = 0; i < volumes.size(); ++i) {
-    SCOPED_TRACE(i);
-    const float iso = i < 4 ? 0.5f : 0.0f;
-    for (unsigned slab_layers : {0u, 1u, 4u, 16u}) {
-      SCOPED_TRACE(slab_layers);
-      MergeOptions options;
-      options.slab_layers = slab_layers;
-      const Extracted one = extract_both(volumes[i], iso, kClosed, options);
-      expect_same_topology(one);
-      EXPECT_TRUE(check_mesh(one.tm).closed_manifold());
-      EXPECT_LE(max_vertex_to_mesh_distance(one.mc, one.tm), options.epsilon_voxels + 1e-6);
-      if (slab_layers == 0) {
-        EXPECT_EQ(one.stats.cubes_deferred, 0u);
-      }
-      for (unsigned threads : {2u, 3u}) {
-        SCOPED_TRACE(threads);
-        options.threads = threads;
-        const Extracted many = extract_both(volumes[i], iso, kClosed, options);
-        EXPECT_EQ(many.tm.triangles, one.tm.triangles);
-        EXPECT_EQ(many.tm.positions, one.tm.positions);
-        EXPECT_EQ(many.tm.normals, one.tm.normals);
-        EXPECT_EQ(many.stats.collapses_done, one.stats.collapses_done);
-        EXPECT_EQ(many.stats.cubes_deferred, one.stats.cubes_deferred);
-      }
-    }
-  }
 }
 
 // extract_type_merged in pieces of slab_layers cube layers, each merged alone with its seams

@@ -4,8 +4,8 @@
 // change" can be checked from the command line. Not a test: never gates.
 //
 //   volume_bench (--nrrd FILE | --sphere N) [--iso 300,-500] [--threads 1,2] [--repeat 5]
-//                [--merge 1] [--distance 0] [--max-class N (MergeOptions::max_class_vertices)]
-//                [--slab N (MergeOptions::slab_layers)]; --threads applies to MC and the merge
+//                [--merge 1] [--distance 0] [--max-class N (MergeOptions::max_class_vertices)];
+//                --threads applies to MC (merge_types is serial)
 //
 // Cells are (nx − 1)(ny − 1)(nz − 1), as in bench/extract_bench. Prints min and median ms.
 #include <algorithm>
@@ -79,7 +79,6 @@ int main(int argc, char** argv) {
   bool merge = true;
   bool distance = false;
   long max_class = -1;  // -1: the MergeOptions default
-  long slab_layers = -1;
   for (int a = 1; a + 1 < argc; a += 2) {
     const std::string key = argv[a], value = argv[a + 1];
     if (key == "--nrrd") nrrd = value;
@@ -90,7 +89,6 @@ int main(int argc, char** argv) {
     else if (key == "--merge") merge = value != "0";
     else if (key == "--distance") distance = value != "0";
     else if (key == "--max-class") max_class = std::stol(value);
-    else if (key == "--slab") slab_layers = std::stol(value);
     else {
       std::fprintf(stderr, "unknown option %s\n", key.c_str());
       return 2;
@@ -110,7 +108,7 @@ int main(int argc, char** argv) {
   } else {
     std::fprintf(stderr, "usage: volume_bench (--nrrd FILE | --sphere N) [--iso a,b] "
                          "[--threads 1,2] [--repeat 5] [--merge 1] [--distance 0] "
-                         "[--max-class N] [--slab N]\n");
+                         "[--max-class N]\n");
     return 2;
   }
   const VolumeSize& s = volume.size();
@@ -149,8 +147,6 @@ int main(int argc, char** argv) {
           const auto t2 = Clock::now();
           MergeOptions merge_options;
           if (max_class >= 0) merge_options.max_class_vertices = static_cast<std::uint32_t>(max_class);
-          if (slab_layers >= 0) merge_options.slab_layers = static_cast<unsigned>(slab_layers);
-          merge_options.threads = options.threads;
           merge_types(mesh, cubes, merge_options, &stats);
           const auto t3 = Clock::now();
           merge_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t2).count());
@@ -170,10 +166,9 @@ int main(int argc, char** argv) {
                     merge_ms.front(), merge_ms[merge_ms.size() / 2], total, cells / total * 1e-3,
                     mesh.triangles.size(), static_cast<unsigned long long>(hash_mesh(mesh)));
         std::printf("                     collapses %zu of %zu tried, slivers removed %zu left "
-                    "%zu, merges abandoned %zu, capped %zu, deferred to the serial phase %zu\n",
+                    "%zu, merges abandoned %zu, capped %zu\n",
                     stats.collapses_done, stats.collapses_tried, stats.sliver_collapses,
-                    stats.slivers_left, stats.merges_abandoned, stats.runs_capped,
-                    stats.cubes_deferred);
+                    stats.slivers_left, stats.merges_abandoned, stats.runs_capped);
         if (distance) {
           const auto t0 = Clock::now();
           const SymmetricMeshDistance d = mesh_distance(mc, mesh, options.threads);
