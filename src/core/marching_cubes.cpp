@@ -489,15 +489,6 @@ class Extractor {
   std::size_t last_slice_end_vertex_ = 0;    // one past its last
 };
 
-void add_stats(AmbiguityStats& sum, const AmbiguityStats& s) {
-  sum.boundary_cubes += s.boundary_cubes;
-  for (std::size_t k = 0; k < sum.cubes_with_ambiguous_faces.size(); ++k) {
-    sum.cubes_with_ambiguous_faces[k] += s.cubes_with_ambiguous_faces[k];
-  }
-  sum.joined_faces += s.joined_faces;
-  sum.centroid_vertices += s.centroid_vertices;
-}
-
 }  // namespace
 
 TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOptions& options) {
@@ -537,7 +528,7 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
     vertex_base[k + 1] = vertex_base[k] + e.mesh().positions.size() - e.shared_vertices();
     triangle_base[k + 1] = triangle_base[k] + e.mesh().triangles.size();
     cube_base[k + 1] = cube_base[k] + e.cubes().size();
-    if (options.stats != nullptr) add_stats(*options.stats, e.stats());
+    if (options.stats != nullptr) *options.stats += e.stats();
   }
   assert(vertex_base.back() <= std::numeric_limits<VertexId>::max());
   TriangleMesh mesh;
@@ -584,10 +575,13 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last) {
   assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
-  std::vector<BoundaryCube> unused;  // the extractor records cubes when this is set
+  // The extractor records cubes, and counts ambiguities, when these are set; it keeps both
+  // itself (the piece takes them), so the targets stay empty.
+  std::vector<BoundaryCube> unused_cubes;
+  AmbiguityStats unused_stats;
   ExtractOptions with_cubes = options;
-  with_cubes.cubes = &unused;
-  with_cubes.stats = nullptr;
+  with_cubes.cubes = &unused_cubes;
+  if (options.stats != nullptr) with_cubes.stats = &unused_stats;
   Extractor extractor(volume, iso, with_cubes);
   extractor.run(first, last);
   SurfacePiece piece;

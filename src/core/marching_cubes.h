@@ -33,6 +33,17 @@ struct AmbiguityStats {
   std::size_t joined_faces = 0;
   // Loops that needed an extra centre vertex (no fan apex avoids the cube faces).
   std::size_t centroid_vertices = 0;
+
+  // Counts of two parts of a surface (slabs, pieces) added up.
+  AmbiguityStats& operator+=(const AmbiguityStats& part) {
+    boundary_cubes += part.boundary_cubes;
+    for (std::size_t k = 0; k < cubes_with_ambiguous_faces.size(); ++k) {
+      cubes_with_ambiguous_faces[k] += part.cubes_with_ambiguous_faces[k];
+    }
+    joined_faces += part.joined_faces;
+    centroid_vertices += part.centroid_vertices;
+    return *this;
+  }
 };
 
 // One boundary cube as the extractor triangulated it, for post-processing that needs the
@@ -118,8 +129,9 @@ struct SurfacePiece {
 // Cube layers extract_isosurface sweeps for these options (0 when there is no cube).
 std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOptions& options);
 
-// Extracts one piece with its cube records, on the calling thread (options.threads, .stats
-// and .cubes are ignored).
+// Extracts one piece with its cube records (and its ambiguity counts when options.stats is
+// set; the piece holds them, *options.stats is not touched), on the calling thread
+// (options.threads and .cubes are ignored).
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last);

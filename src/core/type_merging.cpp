@@ -1084,15 +1084,6 @@ void append_piece(TriangleMesh& out, const MergedPiece& piece, std::vector<Verte
   seam = std::move(top);
 }
 
-void add_ambiguity(AmbiguityStats& sum, const AmbiguityStats& part) {
-  sum.boundary_cubes += part.boundary_cubes;
-  for (std::size_t k = 0; k < sum.cubes_with_ambiguous_faces.size(); ++k) {
-    sum.cubes_with_ambiguous_faces[k] += part.cubes_with_ambiguous_faces[k];
-  }
-  sum.joined_faces += part.joined_faces;
-  sum.centroid_vertices += part.centroid_vertices;
-}
-
 }  // namespace
 
 void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
@@ -1147,7 +1138,7 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
       add_stats(total, piece.stats);
       total.triangles_before += piece.stats.triangles_before;
       total.vertices_before += piece.stats.vertices_before - piece.shared;
-      if (extract.stats != nullptr) add_ambiguity(*extract.stats, piece.ambiguity);
+      if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
       piece = MergedPiece{};
     }
   }

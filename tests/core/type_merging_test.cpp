@@ -420,13 +420,21 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
   for (std::size_t i = 0; i < volumes.size(); ++i) {
     SCOPED_TRACE(i);
     const float iso = i < 4 ? 0.5f : 0.0f;
-    const TriangleMesh mc = extract_isosurface(volumes[i], iso, kClosed);
+    AmbiguityStats mc_ambiguity;
+    ExtractOptions extract = kClosed;
+    extract.stats = &mc_ambiguity;
+    const TriangleMesh mc = extract_isosurface(volumes[i], iso, extract);
     for (unsigned slab_layers : {1u, 4u, 16u}) {
       SCOPED_TRACE(slab_layers);
       MergeOptions options;
       options.slab_layers = slab_layers;
       Extracted one{mc, {}, {}};
-      one.tm = extract_type_merged(volumes[i], iso, kClosed, options, &one.stats);
+      AmbiguityStats ambiguity;
+      extract.stats = &ambiguity;
+      one.tm = extract_type_merged(volumes[i], iso, extract, options, &one.stats);
+      EXPECT_EQ(ambiguity.boundary_cubes, mc_ambiguity.boundary_cubes);
+      EXPECT_EQ(ambiguity.cubes_with_ambiguous_faces, mc_ambiguity.cubes_with_ambiguous_faces);
+      EXPECT_EQ(ambiguity.joined_faces, mc_ambiguity.joined_faces);
       expect_same_topology(one);
       EXPECT_TRUE(check_mesh(one.tm).closed_manifold());
       EXPECT_EQ(one.stats.vertices_before, mc.positions.size());
