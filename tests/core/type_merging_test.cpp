@@ -456,6 +456,29 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
   }
 }
 
+// Pieces where the surface is open (borders left open, classic mode's holes): boundaries stay
+// exactly as marching cubes leaves them, also where they cross a seam.
+TEST(TypeMerging, PiecesKeepOpenBordersAndHoles) {
+  constexpr ExtractOptions kClassic{.close_borders = true, .mode = ExtractOptions::Mode::classic};
+  MergeOptions options;
+  options.slab_layers = 3;
+  for (const ExtractOptions& extract : {kOpen, kClassic}) {
+    for (unsigned seed = 1; seed <= 6; ++seed) {
+      SCOPED_TRACE(seed);
+      const Volume volume = noise_volume(11, 10, 13, seed);
+      const MeshCheck mc = check_mesh(extract_isosurface(volume, 0.5f, extract));
+      const MeshCheck tm = check_mesh(extract_type_merged(volume, 0.5f, extract, options));
+      EXPECT_GT(mc.boundary_edges, 0u);
+      EXPECT_EQ(tm.boundary_edges, mc.boundary_edges);
+      EXPECT_EQ(tm.non_manifold_edges, mc.non_manifold_edges);
+      EXPECT_EQ(tm.inconsistent_edges, 0u);
+      EXPECT_EQ(tm.degenerate_triangles, 0u);
+      EXPECT_EQ(tm.euler_characteristic, mc.euler_characteristic);
+      EXPECT_EQ(tm.components, mc.components);
+    }
+  }
+}
+
 // The class bound: no limit merges at least as much on the sphere, and a tiny bound still
 // keeps every guarantee.
 TEST(TypeMerging, ClassBoundKeepsGuarantees) {
