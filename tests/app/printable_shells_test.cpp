@@ -6,11 +6,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <map>
 #include <nlohmann/json.hpp>
 #include <numeric>
 #include <string>
@@ -56,50 +56,74 @@ StlShells read_shells(const fs::path& stl) {
   if (bytes.size() != 84 + 50 * std::size_t{count}) return result;
   result.well_formed = true;
 
-  std::map<std::array<float, 3>, std::uint32_t> ids;  // exact positions: STL repeats them bit for bit
-  std::vector<std::array<float, 3>> points;
-  std::vector<std::array<std::uint32_t, 3>> triangles(count);
-  for (std::uint32_t t = 0; t < count; ++t) {
-    for (int k = 0; k < 3; ++k) {
-      std::array<float, 3> p;
-      std::memcpy(p.data(), bytes.data() + 84 + 50 * std::size_t{t} + 12 + 12 * k, 12);
-      const auto [it, added] = ids.emplace(p, static_cast<std::uint32_t>(points.size()));
-      if (added) points.push_back(p);
-      triangles[t][k] = it->second;
-    }
+  // Weld corners by their exact bytes (STL repeats a shared vertex bit for bit): sort them.
+  struct Corner {
+    std::array<std::uint32_t, 3> bits;
+    std::uint32_t slot;  // 3 × triangle + corner
+  };
+  std::vector<Corner> corners(3 * std::size_t{count});
+  for (std::uint32_t slot = 0; slot < corners.size(); ++slot) {
+    std::memcpy(corners[slot].bits.data(), bytes.data() + 84 + 50 * (slot / 3) + 12 + 12 * (slot % 3),
+                12);
+    corners[slot].slot = slot;
   }
-  std::map<std::pair<std::uint32_t, std::uint32_t>, int> directed;
+  std::sort(corners.begin(), corners.end(),
+            [](const Corner& a, const Corner& b) { return a.bits < b.bits; });
+  std::vector<std::uint32_t> id(corners.size());
+  std::vector<std::array<float, 3>> points;
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    if (i == 0 || corners[i].bits != corners[i - 1].bits) {
+      std::array<float, 3> p;
+      std::memcpy(p.data(), corners[i].bits.data(), 12);
+      points.push_back(p);
+    }
+    id[corners[i].slot] = static_cast<std::uint32_t>(points.size() - 1);
+  }
+
+  // Directed edges, sorted: closed and consistently oriented when each occurs once and so
+  // does its reverse.
+  std::vector<std::uint64_t> directed;
+  directed.reserve(corners.size());
   std::vector<std::uint32_t> parent(points.size());
   std::iota(parent.begin(), parent.end(), 0u);
   auto root = [&](std::uint32_t v) {
     while (parent[v] != v) v = parent[v] = parent[parent[v]];
     return v;
   };
-  for (const auto& t : triangles) {
-    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) ++result.degenerate;
+  for (std::uint32_t t = 0; t < count; ++t) {
+    const std::uint32_t* v = id.data() + 3 * std::size_t{t};
+    if (v[0] == v[1] || v[1] == v[2] || v[0] == v[2]) ++result.degenerate;
     for (int k = 0; k < 3; ++k) {
-      ++directed[{t[k], t[(k + 1) % 3]}];
-      const std::uint32_t a = root(t[k]), b = root(t[(k + 1) % 3]);
-      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+      const std::uint32_t a = v[k], b = v[(k + 1) % 3];
+      directed.push_back(std::uint64_t{a} << 32 | b);
+      const std::uint32_t ra = root(a), rb = root(b);
+      if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
     }
   }
-  result.closed_oriented = std::all_of(directed.begin(), directed.end(), [&](const auto& edge) {
-    const auto reverse = directed.find({edge.first.second, edge.first.first});
-    return edge.second == 1 && reverse != directed.end() && reverse->second == 1;
-  });
-  std::map<std::uint32_t, Shell> by_root;
-  for (const auto& t : triangles) {
-    Shell& shell = by_root[root(t[0])];
+  std::sort(directed.begin(), directed.end());
+  result.closed_oriented = std::adjacent_find(directed.begin(), directed.end()) == directed.end();
+  for (std::size_t i = 0; i < directed.size() && result.closed_oriented; ++i) {
+    const std::uint64_t reverse = (directed[i] << 32) | (directed[i] >> 32);
+    result.closed_oriented = std::binary_search(directed.begin(), directed.end(), reverse);
+  }
+
+  // Shells: signed volume per union-find root.
+  std::vector<Shell> by_root(points.size());
+  for (std::uint32_t t = 0; t < count; ++t) {
+    const std::uint32_t* v = id.data() + 3 * std::size_t{t};
+    Shell& shell = by_root[root(v[0])];
     ++shell.triangles;
-    const auto& a = points[t[0]];
-    const auto& b = points[t[1]];
-    const auto& c = points[t[2]];
+    const auto& a = points[v[0]];
+    const auto& b = points[v[1]];
+    const auto& c = points[v[2]];
     shell.volume_mm3 += (double(a[0]) * (double(b[1]) * c[2] - double(b[2]) * c[1]) +
                          double(a[1]) * (double(b[2]) * c[0] - double(b[0]) * c[2]) +
                          double(a[2]) * (double(b[0]) * c[1] - double(b[1]) * c[0])) /
                         6.0;
   }
-  for (const auto& [root_id, shell] : by_root) result.shells.push_back(shell);
+  for (const Shell& shell : by_root) {
+    if (shell.triangles > 0) result.shells.push_back(shell);
+  }
   return result;
 }
 
@@ -109,11 +133,8 @@ nlohmann::json stats_of(const fs::path& stl) {
   return nlohmann::json::parse(r.out);
 }
 
-// Converts and checks the file both ways; returns the independent reading.
-StlShells convert_and_check(const std::string& input, const std::string& options,
-                            const fs::path& stl) {
-  const auto converted = run_cli("convert " + input + " " + options + " -o " + stl.string());
-  EXPECT_EQ(converted.exit_code, 0) << converted.err;
+// Checks a written file both ways; returns the independent reading.
+StlShells check_written(const fs::path& stl) {
   const StlShells shells = read_shells(stl);
   EXPECT_TRUE(shells.well_formed) << stl;
   EXPECT_TRUE(shells.closed_oriented) << stl;
@@ -123,6 +144,13 @@ StlShells convert_and_check(const std::string& input, const std::string& options
   EXPECT_EQ(stats["components"].get<std::size_t>(), shells.shells.size()) << stl;
   EXPECT_NEAR(stats["volume_mm3"].get<double>(), shells.volume(), 1e-6 * std::abs(shells.volume()));
   return shells;
+}
+
+StlShells convert_and_check(const std::string& input, const std::string& options,
+                            const fs::path& stl) {
+  const auto converted = run_cli("convert " + input + " " + options + " -o " + stl.string());
+  EXPECT_EQ(converted.exit_code, 0) << converted.err;
+  return check_written(stl);
 }
 
 const std::string kSample = std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series";
@@ -158,12 +186,14 @@ TEST(PrintableShells, AbdomenBoneAndSkinAsSingleShells) {
   TYPEMERGE_REQUIRE_REAL_DATA(data);
   const std::string abdomen = (data / "ct" / "abdomen").string();
   const fs::path out = fresh_dir("shells_abdomen");
-  const StlShells skin = convert_and_check(abdomen, "--preset skin", out / "skin.stl");
+  const auto both = run_cli("convert " + abdomen + " --preset bone,skin -o " + out.string());
+  ASSERT_EQ(both.exit_code, 0) << both.err;
+  const StlShells skin = check_written(out / "skin.stl");
   EXPECT_EQ(skin.shells.size(), 1u);
 
   // The bones of the abdomen are separate solids (vertebrae, ribs, pelvis, femoral heads,
   // with cartilage below 226 HU between them); each is closed.
-  const StlShells bones = convert_and_check(abdomen, "--preset bone", out / "bones.stl");
+  const StlShells bones = check_written(out / "bone.stl");
   EXPECT_GT(bones.outward(), 10u);
 
   // The largest of them as one shell (cavities filled): what a print of one piece needs.
