@@ -153,19 +153,27 @@ void read_functional_group(DcmItem& group, SliceHeader& header) {
 // length before reading: a 1 kB file declaring a 2 GB name allocates 2 GB (found by
 // fuzz/fuzz_dicom_file). No value is longer than the file holds, or for a deflated data set
 // than 1032 times it (zlib's largest ratio), so a longer one refuses the file before any
-// value is read.
+// value is read. An undefined length belongs to sequences and encapsulated pixel data only:
+// on a plain value (a 587-byte file with an SV element of undefined length) DCMTK took it as
+// 4 GB and allocated that when the value was read as text (fuzz_dicom_file, oom-e93235e3…).
 void check_value_lengths(DcmFileFormat& format, std::uint64_t file_bytes, bool deflated) {
-  if (file_bytes == 0) return;  // size unknown: nothing to compare with
-  const std::uint64_t limit = deflated ? file_bytes * 1032 + 1024 : file_bytes;
   DcmStack stack;
   while (format.nextObject(stack, OFTrue).good()) {
     DcmObject* object = stack.top();
     if (object == nullptr || !object->isLeaf()) continue;
     const Uint32 length = object->getLengthField();
-    if (length == DCM_UndefinedLength || length <= limit) continue;
+    const bool undefined = length == DCM_UndefinedLength;
+    if (undefined ? object->getTag() == DCM_PixelData
+                  : file_bytes == 0 || length <= (deflated ? file_bytes * 1032 + 1024 : file_bytes)) {
+      continue;
+    }
     char tag[16];
     std::snprintf(tag, sizeof tag, "(%04X,%04X)", unsigned{object->getGTag()},
                   unsigned{object->getETag()});
+    if (undefined) {
+      throw Refusal{std::string("damaged DICOM file: element ") + tag +
+                    " has an undefined length, which only sequences and pixel data may have"};
+    }
     throw Refusal{std::string("damaged DICOM file: element ") + tag + " declares " +
                   std::to_string(length) + " bytes, more than the " + std::to_string(file_bytes) +
                   "-byte file holds"};

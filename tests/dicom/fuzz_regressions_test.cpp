@@ -67,6 +67,33 @@ TEST(FuzzRegressions, HugeDeclaredValueLengthIsRefusedBeforeAllocating) {
   EXPECT_NE(read.skip_reason.find("declares"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom-e93235e3…: a 587-byte file whose SOPClassUID is an SV element of
+// undefined length. DCMTK took the length as 4 GB and allocated it when the value was read as
+// text (libFuzzer: malloc of 4294967296 bytes in DcmElement::getOFStringArray from
+// read_headers). Now refused before any value is read.
+TEST(FuzzRegressions, UndefinedLengthOnAPlainValueIsRefused) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000ff0000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b4000000"
+    "020001004f4200000200000000010200020055491a00302e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491400"
+    "312e322e3834302e31303030382e312e322e31000200120055492000312e322e3832362e302e312e333638303034332e"
+    "31302e313233352e302e31000200130053481000545950454d455247455f4354575f312008000800435316004f524947"
+    "494e414c5c5052494d4152595c415849414c0800160053561affffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffff00312e322e3834302e31303030382e352e312e342e312e312e32000800180055492000312e322e383236"
+    "2e302e312e3336383030003e104c4f0c0053796e74686574696320435410001000504e120053796e7468657469635e50"
+    "68616e746f6d100055491400312e322e3834302e31303030382e312e322e31000200120055492000312e322e3832362e"
+    "302e312e333638303034332e31302e313233342e302e31000200130053481000545950454d455247455f4354575f3120"
+    "0800084453040031320030"
+  );
+  ASSERT_EQ(reproducer.size(), 587u);
+  const HeaderReadResult read = read_headers(write_temp("undefined_length.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+  EXPECT_NE(read.skip_reason.find("undefined length"), std::string::npos) << read.skip_reason;
+}
+
 // The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
 TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
