@@ -94,6 +94,37 @@ TEST(FuzzRegressions, UndefinedLengthOnAPlainValueIsRefused) {
   EXPECT_NE(read.skip_reason.find("undefined length"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom-4b468274…: a 755-byte deflated file whose inflated data set declares
+// a 3.3 GB value. DCMTK reads a deflated stream in one pass, allocating each value as it goes
+// (libFuzzer: malloc of 3358654466 bytes in DcmElement::newValueField from loadFile), before
+// check_value_lengths could look. Now the prescan, which inflates the data set anyway,
+// refuses it before DCMTK parses.
+TEST(FuzzRegressions, DeflatedValueLongerThanTheDataSetIsRefusedBeforeParsing) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b6000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491600"
+    "312e322e3834302e31303030382e312e322e312e39390200120055492000312e322e3832362e302e312e333638303034"
+    "332e31302e313233342e302e31000200130053481000545950454d455247455f4354575f31208d90cd6ed34014854f7e"
+    "688734a0694155c56a96d960cd386e091b54cb2dd8929309b62b5ac982a062b55db454c18866d557e892c760c923b0e4"
+    "1158b2e41138b6a5c0326359fae6dc7367ce5c018120dd864da257d1c48ff369128dfde424f78f233f16d8c651f404c6"
+    "719d91a71da3b51e39bb8e713cfe54d9bd43876a1cee9e438f33dc1b69ed0de9768c3bac9df4291cf8022e4fd0461b01"
+    "8d6cbc065d2f8129d21074cd98a68d2013b8466c1fa35c5c1797c5fcac50a7e5bb2ff38bb2982b813b4c27955bcbd84a"
+    "a48babf2bc282f4ed5a7f2f38705eb2fa8f7ffd3834c42b267eb9ff6767afefeaafc78a92493c5b687f4649285875914"
+    "50d17556f3bcc92ab15fa7b26a87390f4886342375615c4dc6eb801cbe4c95c28315e6e1f2ce872bf886f4f17d6175a3"
+    "c226a2b4a1ad253d5a92cb3c9c67ce8fbb67dcf561f27a9f9b5a4b56b8d1c3006d1cf1cc16a9cb77f731b6131b84891d"
+    "1fba6ac03c55b5cbeae69274338bdcb08e56a54aaaad9afad589356d903a358194c82aef53a35d8f5da96ce6faeb56c2"
+    "be01df5dad1fb86b1db755e777e75b5de6defe9a58ffffffff02ee0f7a7f7adf37fe02"
+  );
+  ASSERT_EQ(reproducer.size(), 755u);
+  const HeaderReadResult read = read_headers(write_temp("deflated_oom.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_NE(read.skip_reason.find("refused before parsing"), std::string::npos) << read.skip_reason;
+  EXPECT_NE(read.skip_reason.find("declares"), std::string::npos) << read.skip_reason;
+}
+
 // The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
 TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
