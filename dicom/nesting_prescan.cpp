@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <optional>
 #include <string_view>
 #include <algorithm>
 #include <vector>
@@ -196,12 +197,15 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
   if (has_preamble) head.skip(132);
   // The meta header (group 0002) is always explicit little endian; read it to learn how the
   // data set is encoded.
+  // Like DCMTK, the meta header ends where its group length (0002,0000) says when it has one
+  // (whatever groups the elements inside claim), else at the first element of another group.
   std::string transfer_syntax;
-  while (head.has(8)) {
+  std::optional<std::size_t> meta_end;
+  while (head.has(8) && (!meta_end || head.pos() < *meta_end)) {
     const std::size_t start = head.pos();
     const std::uint16_t group = head.u16(false);
     const std::uint16_t element = head.u16(false);
-    if (group != 0x0002 || !looks_like_vr(head.chars(head.pos(), 2))) {
+    if ((!meta_end && group != 0x0002) || !looks_like_vr(head.chars(head.pos(), 2))) {
       head.seek(start);
       break;
     }
@@ -215,7 +219,12 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     } else {
       length = head.u16(false);
     }
-    if (element == 0x0010 && head.has(length)) {
+    if (group == 0x0002 && element == 0x0000 && length == 4 && head.has(4) && !meta_end) {
+      const std::uint32_t group_length = head.u32(false);
+      if (head.has(group_length)) meta_end = head.pos() + group_length;  // else not trusted
+      continue;
+    }
+    if (group == 0x0002 && element == 0x0010 && head.has(length)) {
       transfer_syntax = std::string(head.chars(head.pos(), length));
       while (!transfer_syntax.empty() &&
              (transfer_syntax.back() == '\0' || transfer_syntax.back() == ' ')) {
@@ -224,6 +233,7 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     }
     head.skip(length);
   }
+  if (meta_end) head.seek(*meta_end);
 
   if (transfer_syntax == "1.2.840.10008.1.2") {
     dataset_encoding.explicit_vr = false;

@@ -5,9 +5,9 @@
 //  * every triangle index is a vertex of the mesh, for all three;
 //  * consistent mode with closed borders: closed, manifold, consistently oriented, no
 //    degenerate triangle; with open borders the same except boundary edges;
-//  * type merging keeps those guarantees and the Euler characteristic and number of
-//    components of the marching-cubes mesh it merges;
-//  * threads > 1 give the serial output exactly.
+//  * type merging, in pieces of 1 to 4 layers, keeps those guarantees and the Euler
+//    characteristic and number of components of the marching-cubes mesh it merges;
+//  * threads > 1 give the serial output exactly (extraction and type merging).
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -105,8 +105,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   check_indices(classic_mesh);
   (void)check_mesh(classic_mesh);
 
-  const TriangleMesh tm = extract_type_merged(volume, iso, options);
+  // Pieces of 1 to 4 cube layers: most vertices lie on or near a seam.
+  MergeOptions merge;
+  merge.slab_layers = 1 + static_cast<unsigned>(in.pick(4));
+  const TriangleMesh tm = extract_type_merged(volume, iso, options, merge);
   check_indices(tm);
+  if (try_threads) {
+    MergeOptions threaded = merge;
+    threaded.threads = 3;
+    if (!same(extract_type_merged(volume, iso, options, threaded), tm)) {
+      violated("type merging with threads differs from serial");
+    }
+  }
   const MeshCheck tm_check = check_mesh(tm);
   check_sound(tm_check, close_borders, "type merged");
   if (close_borders && (tm_check.euler_characteristic != mc_check.euler_characteristic ||

@@ -125,6 +125,35 @@ TEST(FuzzRegressions, DeflatedValueLongerThanTheDataSetIsRefusedBeforeParsing) {
   EXPECT_NE(read.skip_reason.find("declares"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom-1987f38f…: the same in a 725-byte deflated file whose meta header
+// holds an element of another group inside the length its group length declares. DCMTK
+// starts the data set where that length ends; the prescan stopped at the foreign group,
+// inflated from the wrong byte, found nothing, and DCMTK then allocated 3.9 GB.
+TEST(FuzzRegressions, MetaHeaderEndsWhereItsGroupLengthSays) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b6000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491600"
+    "312e322e3834302e31303030382e312e322e312e39390200120055492000312e322e3832362e302e312e333638303034"
+    "332e31302e313233342e302e31007e00130053481000545950454d455247455f4354575f31208d90cd6ed34014854f7e"
+    "688734a0694155c56a96d960cd386e091b54cb2dd8929309b62b5ac982a062b55db454c18866d557e892c760c923b0e4"
+    "1158b2e41138b6a5c0326359fae6dc7367ce5c018120dd86000000000000000000ffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffff01000008ffffffffffffffff"
+    "ffffffffffffffff32fffffffffffffffffffffff7ffffffffffffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffb0bdffffffffffffffffffffffffffff"
+    "fffffffffffffffefeaafc78a92493c5b687f464928587591450d17556f3bcc92ab15fa7f4f17d6175a3c226a2b45549"
+    "a1ad253d1a"
+  );
+  ASSERT_EQ(reproducer.size(), 725u);
+  const HeaderReadResult read = read_headers(write_temp("meta_length_oom.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_NE(read.skip_reason.find("refused before parsing"), std::string::npos) << read.skip_reason;
+}
+
 // The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
 TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
