@@ -46,9 +46,16 @@ class ByteReader {
   std::size_t pos_ = 0;
 };
 
-// VRs with a 2-byte length in explicit VR; every other one — the long standard VRs, and an
-// unknown VR, which DCMTK reads like UN — has 2 reserved bytes and a 4-byte length.
+bool looks_like_vr(std::string_view vr) {
+  return vr.size() == 2 && vr[0] >= 'A' && vr[0] <= 'Z' && vr[1] >= 'A' && vr[1] <= 'Z';
+}
+
+// Whether an explicit-VR element has 2 reserved bytes and a 4-byte length, as DCMTK reads it
+// (DcmVR::setVR): the long standard VRs and any other two capital letters (an unknown VR, read
+// like UN); the short standard VRs, and two bytes that are not capital letters (its
+// EVR_UNKNOWN2B), have a 2-byte length.
 bool is_long_vr(std::string_view vr) {
+  if (!looks_like_vr(vr)) return false;
   static constexpr std::array<std::string_view, 21> kShort = {
       "AE", "AS", "AT", "CS", "DA", "DS", "DT", "FL", "FD", "IS", "LO",
       "LT", "PN", "SH", "SL", "SS", "ST", "TM", "UI", "UL", "US"};
@@ -56,10 +63,6 @@ bool is_long_vr(std::string_view vr) {
     if (v == vr) return false;
   }
   return true;
-}
-
-bool looks_like_vr(std::string_view vr) {
-  return vr.size() == 2 && vr[0] >= 'A' && vr[0] <= 'Z' && vr[1] >= 'A' && vr[1] <= 'Z';
 }
 
 struct Encoding {
@@ -96,7 +99,7 @@ int walk(ByteReader& in, Encoding enc, int max_depth, std::string& error,
     } else {
       std::uint32_t length = 0;
       bool sequence = false;
-      if (enc.explicit_vr && looks_like_vr(in.chars(in.pos(), 2))) {
+      if (enc.explicit_vr) {
         const std::string_view vr = in.chars(in.pos(), 2);
         sequence = vr == "SQ";
         in.skip(2);
@@ -205,7 +208,7 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     const std::size_t start = head.pos();
     const std::uint16_t group = head.u16(false);
     const std::uint16_t element = head.u16(false);
-    if ((!meta_end && group != 0x0002) || !looks_like_vr(head.chars(head.pos(), 2))) {
+    if (!meta_end && group != 0x0002) {
       head.seek(start);
       break;
     }

@@ -154,6 +154,32 @@ TEST(FuzzRegressions, MetaHeaderEndsWhereItsGroupLengthSays) {
   EXPECT_NE(read.skip_reason.find("refused before parsing"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom-84b1836d…: a 603-byte deflated file whose meta header has an element
+// with a VR of two non-letter bytes. DCMTK reads that with a 2-byte length (EVR_UNKNOWN2B)
+// and goes on to the transfer syntax; the prescan stopped there, missed "deflated" and let
+// DCMTK allocate 3.1 GB from the inflated data set.
+TEST(FuzzRegressions, NonLetterVrIsReadWithATwoByteLengthAsDcmtkDoes) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b6000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055df2000312e322e3832362e302e312f333638303034332e31302e313233342e312e31000200100055491600"
+    "312e322e3834302e31303030382e312e322e312e39390200120055492000312e322e3832362e302e312e333638303034"
+    "332e31302e313233342e302e31000200130053481000545950454d455247455f4354575f31208d90cd6ed34014854f7e"
+    "688734a0694155c56a96d960cd386e091b54cb2dd8929309b62b5ac982a062b55db454c18866d557e892c760c923b0e4"
+    "1158b2e41138b6a5c0326359fae6dc7367ce5c018120dd86000000000000000000ffffffffff29ffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffff05000000ffffffffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffff"
+    "ffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffffefffffffffff"
+    "ffffffffffffffff464ca924936175a3c226a2b45549a1ad253d1a"
+  );
+  ASSERT_EQ(reproducer.size(), 603u);
+  const HeaderReadResult read = read_headers(write_temp("vr2b_oom.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_NE(read.skip_reason.find("refused before parsing"), std::string::npos) << read.skip_reason;
+}
+
 // The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
 TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
