@@ -169,8 +169,12 @@ std::vector<unsigned char> read_head(const std::filesystem::path& file, std::str
   return bytes;
 }
 
-std::vector<unsigned char> inflate_raw(const unsigned char* data, std::size_t size) {
+// Inflates a raw deflate stream, up to kMaxInflatedBytes; `complete` says whether the stream
+// ended properly (Z_STREAM_END).
+std::vector<unsigned char> inflate_raw(const unsigned char* data, std::size_t size,
+                                       bool& complete) {
   std::vector<unsigned char> out;
+  complete = false;
   z_stream z{};
   if (inflateInit2(&z, -MAX_WBITS) != Z_OK) return out;
   z.next_in = const_cast<unsigned char*>(data);
@@ -183,6 +187,7 @@ std::vector<unsigned char> inflate_raw(const unsigned char* data, std::size_t si
     status = inflate(&z, Z_NO_FLUSH);
     out.insert(out.end(), chunk.data(), chunk.data() + (chunk.size() - z.avail_out));
   }
+  complete = status == Z_STREAM_END;
   inflateEnd(&z);
   return out;
 }
@@ -202,8 +207,13 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
   // data set is encoded.
   // Like DCMTK, the meta header ends where its group length (0002,0000) says when it has one
   // (whatever groups the elements inside claim), else at the first element of another group.
+  // `meta_clean`: every element is of group 0002 with a real VR, and they end exactly where
+  // the group length says — the only meta header after which a deflated data set is parsed
+  // (where DCMTK would start inflating a damaged one is guesswork; it allocates as it reads).
+  const std::size_t meta_start = head.pos();
   std::string transfer_syntax;
   std::optional<std::size_t> meta_end;
+  bool meta_clean = true;
   while (head.has(8) && (!meta_end || head.pos() < *meta_end)) {
     const std::size_t start = head.pos();
     const std::uint16_t group = head.u16(false);
@@ -213,6 +223,7 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
       break;
     }
     const std::string_view vr = head.chars(head.pos(), 2);
+    meta_clean = meta_clean && group == 0x0002 && looks_like_vr(vr);
     head.skip(2);
     std::uint32_t length = 0;
     if (is_long_vr(vr)) {
@@ -236,6 +247,7 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     }
     head.skip(length);
   }
+  meta_clean = meta_clean && meta_end && head.pos() == *meta_end;
   if (meta_end) head.seek(*meta_end);
 
   if (transfer_syntax == "1.2.840.10008.1.2") {
@@ -247,11 +259,24 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
     dataset_encoding.explicit_vr = looks_like_vr(head.chars(head.pos() + 4, 2));
   }
 
-  if (transfer_syntax == "1.2.840.10008.1.2.1.99") {
+  constexpr std::string_view kDeflated = "1.2.840.10008.1.2.1.99";
+  const std::string_view meta_bytes =
+      head.chars(meta_start, std::min<std::size_t>(head.size() - meta_start, 4096));
+  if (transfer_syntax == kDeflated ||
+      (!meta_clean && meta_bytes.find(kDeflated) != std::string_view::npos)) {
     report.deflated = true;
+    if (!meta_clean) {
+      report.error = "damaged file meta header in front of a deflated data set";
+      return report;
+    }
     const auto& all = head.bytes();
-    ByteReader inflated(inflate_raw(all.data() + head.pos(), all.size() - head.pos()));
+    bool complete = false;
+    ByteReader inflated(inflate_raw(all.data() + head.pos(), all.size() - head.pos(), complete));
     const bool whole = inflated.size() < kMaxInflatedBytes;  // else cut at the bomb limit
+    if (whole && !complete) {
+      report.error = "damaged deflated data set (the compressed stream is cut or corrupt)";
+      return report;
+    }
     report.max_depth = walk(inflated, dataset_encoding, max_depth, report.error, nullptr, whole);
   } else {
     // The head may end before the file does; DCMTK loads long values lazily, and

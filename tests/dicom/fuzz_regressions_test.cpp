@@ -180,6 +180,33 @@ TEST(FuzzRegressions, NonLetterVrIsReadWithATwoByteLengthAsDcmtkDoes) {
   EXPECT_NE(read.skip_reason.find("refused before parsing"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom-076c2d40…: a 607-byte deflated file with bytes inserted into its meta
+// header, after which DCMTK still found a deflate stream (at an offset neither the group
+// length nor the elements give) and allocated 3.4 GB. Where DCMTK starts inflating a damaged
+// meta header is guesswork, so a deflated file is parsed only after a clean one.
+TEST(FuzzRegressions, DeflatedFileWithADamagedMetaHeaderIsRefused) {
+  const std::string reproducer = from_hex(
+    "000001000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b6000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491600"
+    "312e322e3834302e31303030382e312e322e312e39390200120055492000312e322e3832362e302e312e333638303034"
+    "332e31302e313233342e302e310002001300000000000000010f29481000545950454d455247455f4354575f31208d90"
+    "cd6ed34014854f7e688734a0694155c56a96d960cd386e091b54cb2dd8929309b62b5ac982a062b55db454c18866d557"
+    "e892c760c923b0e41158b2e41138b6a5c0326359fae6dc7367ce5c018120dd864da257d1c48ff369128dfde424f78f23"
+    "3f16d8c651f404c6719d91a71da3b51e39bb8e713cfe54d9bd43876a1cee9e438f33dc1b69ed0de9768c3bac9df4291c"
+    "f8022e4fd0461b018d6cbc065d2f8129d21074cd98a68d2013b8466c1fa35c5c1797c5fcac50a7e5bb2ff38bb2982b81"
+    "3b4c27955bcbd84aa48babf2bc282f4ed5a7f2f38705eb2fa8f7ffd3834c42b267eb9ff6767a6ce6faeb56c2be01df5d"
+    "ad1fb86b1db755e777e75bf7e6defe9a58ffb9fe55ccee0f7a7f7adf37fe02"
+  );
+  ASSERT_EQ(reproducer.size(), 607u);
+  const HeaderReadResult read = read_headers(write_temp("meta_damage_oom.dcm", reproducer), {});
+  EXPECT_TRUE(read.frames.empty());
+  EXPECT_NE(read.skip_reason.find("damaged file meta header"), std::string::npos)
+      << read.skip_reason;
+}
+
 // The same damage made on purpose: PatientName's 4-byte length (implicit VR) set to 2 GB.
 TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
