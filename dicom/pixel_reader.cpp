@@ -73,6 +73,64 @@ struct HuMapping {
   throw PixelError(header.path.filename().string() + ": " + reason);
 }
 
+// DCMTK's JPEG decoder (dcmjpeg, DJCodecDecoder::scanJpegDataForBitDepth) walks the markers
+// of a fragment to find its bit depth and never advances past a TEM marker (0xFF01): a
+// fragment with one before its SOF hangs the process (fuzz_dicom_file, timeout-c20d8cfd…).
+// This walks the markers the same way and says whether DCMTK's walk would end.
+bool jpeg_bit_depth_scan_ends(const Uint8* data, std::uint32_t length) {
+  std::uint32_t offset = 0;
+  while (offset + 4 < length) {
+    const unsigned marker = (unsigned{data[offset]} << 8) | data[offset + 1];
+    const unsigned segment = (unsigned{data[offset + 2]} << 8) | data[offset + 3];
+    if (marker == 0xFF01) return false;                                   // TEM: DCMTK loops
+    if (marker >= 0xFFC0 && marker <= 0xFFCF && marker != 0xFFC4 && marker != 0xFFC8 &&
+        marker != 0xFFCC) {
+      return true;                                                         // SOF: depth found
+    }
+    if ((marker >= 0xFFD0 && marker <= 0xFFD9)) {
+      offset += 2;                                                         // RSTn, SOI, EOI
+    } else if (marker >= 0xFFC4 && marker <= 0xFFFE) {
+      offset += segment + 2;                                               // marker segments
+    } else if (marker == 0xFFFF) {
+      offset += 1;                                                         // fill byte
+    } else if (data[offset] == 0xFF && data[offset + 1] > 2 && data[offset + 1] <= 0xBF) {
+      offset += 2;                                                         // reserved markers
+    } else {
+      return true;                                                         // DCMTK stops: error
+    }
+  }
+  return true;
+}
+
+// Refuses JPEG (dcmjpeg) pixel data whose fragments DCMTK's bit-depth scan would not finish.
+void check_jpeg_fragments(DcmDataset& dataset, E_TransferSyntax xfer, const SliceHeader& header) {
+  const DcmXfer syntax(xfer);
+  if (!syntax.isEncapsulated() || is_jpeg2000(xfer) || xfer == EXS_RLELossless ||
+      xfer == EXS_JPEGLSLossless || xfer == EXS_JPEGLSLossy) {
+    return;
+  }
+  DcmElement* element = nullptr;
+  if (dataset.findAndGetElement(DCM_PixelData, element).bad() || element == nullptr) return;
+  DcmPixelSequence* sequence = nullptr;
+  if (static_cast<DcmPixelData*>(element)->getEncapsulatedRepresentation(xfer, nullptr, sequence)
+          .bad() ||
+      sequence == nullptr) {
+    return;
+  }
+  for (unsigned long i = 1; i < sequence->card(); ++i) {
+    DcmPixelItem* item = nullptr;
+    Uint8* bytes = nullptr;
+    if (sequence->getItem(item, i).bad() || item == nullptr ||
+        item->getUint8Array(bytes).bad() || bytes == nullptr) {
+      continue;
+    }
+    if (!jpeg_bit_depth_scan_ends(bytes, item->getLength())) {
+      fail(header, "damaged JPEG data: a TEM marker before the frame header, which the JPEG "
+                   "decoder cannot read past");
+    }
+  }
+}
+
 void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
                    const std::vector<FrameTarget>& targets) {
   const SliceHeader& header = *targets.front().header;
@@ -195,6 +253,7 @@ void read_frames_hu(const std::vector<FrameTarget>& targets) {
       read_jpeg2000(dataset, xfer, targets);
       return;
     }
+    check_jpeg_fragments(dataset, xfer, header);
     const OFCondition decoded = dataset.chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
     if (decoded.bad() || !dataset.canWriteXfer(EXS_LittleEndianExplicit)) {
       fail(header, "unsupported transfer syntax " + transfer_syntax_name(header.transfer_syntax_uid) +
