@@ -181,35 +181,12 @@ struct Fan {
   bool overflow = false;
 };
 
-// The mesh and lattice state a Merger edits.
-struct MergeState {
-  std::vector<VertexId> parent;       // union-find: the vertex that absorbed this one
-  std::vector<VertexId> next_member;  // ring through each class
-  std::vector<VertexId> next_fan;     // ring through the members with live triangles
-  std::vector<std::uint32_t> class_size;  // members of the class, valid at its root
-  std::vector<std::uint32_t> offset;  // CSR vertex → incident triangles
-  std::vector<TriangleId> incident;
-  std::vector<std::uint32_t> live_end;  // end of the still-live prefix of each CSR list
-  std::vector<std::uint8_t> alive;
-  std::vector<TriangleId> witness;    // hint: the triangle that last kept a vertex near
-  std::vector<std::uint32_t> witness_version;  // version of the witness when it was found
-  std::vector<std::uint32_t> version;  // per triangle: changes of shape so far
-
-  std::int32_t y_min = 0;
-  std::int32_t z_min = 0;
-  std::int64_t row_length = 0;
-  std::int64_t z_rows = 0;
-  std::vector<std::uint32_t> row_start;
-  std::vector<std::uint8_t> flag;     // FLAG of §4.1, per cube record
-  std::vector<std::uint8_t> run;      // cubes in the run that ends at this cube
-  std::vector<std::uint8_t> started;  // this cube merged with its successor
-};
 
 class Merger {
  public:
   Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-         const MergeOptions& options, MergeState& state, MergeStats& stats)
-      : mesh_(mesh), cubes_(cubes), options_(options), state_(state), stats_(stats) {
+         const MergeOptions& options, MergeStats& stats)
+      : mesh_(mesh), cubes_(cubes), options_(options), stats_(stats) {
     const double deg = std::numbers::pi / 180.0;
     cos_normal_change_ = std::cos(options.max_normal_change_deg * deg);
     cos_normal_gradient_ = std::cos(options.max_normal_to_gradient_deg * deg);
@@ -217,7 +194,7 @@ class Merger {
     fan_slot_.assign(mesh.triangles.size(), 0);
   }
 
-  // Builds the shared state (once, by one worker).
+  // Builds the incidence lists and the lattice rows.
   void build() {
     build_incidence();
     build_rows();
@@ -948,34 +925,34 @@ class Merger {
   const TriangleMesh& mesh_;
   std::span<const BoundaryCube> cubes_;
   const MergeOptions& options_;
-  MergeState& state_;
   MergeStats& stats_;
   double cos_normal_change_ = 0.0;
   double cos_normal_gradient_ = 0.0;
   double epsilon2_ = 0.0;
 
-  // The shared state, under the names the algorithm uses.
-  std::vector<VertexId>& parent_ = state_.parent;
-  std::vector<VertexId>& next_member_ = state_.next_member;
-  std::vector<VertexId>& next_fan_ = state_.next_fan;
-  std::vector<std::uint32_t>& class_size_ = state_.class_size;
-  std::vector<std::uint32_t>& offset_ = state_.offset;
-  std::vector<TriangleId>& incident_ = state_.incident;
-  std::vector<std::uint32_t>& live_end_ = state_.live_end;
-  std::vector<std::uint8_t>& alive_ = state_.alive;
-  std::vector<TriangleId>& witness_ = state_.witness;
-  std::vector<std::uint32_t>& witness_version_ = state_.witness_version;
-  std::vector<std::uint32_t>& version_ = state_.version;
-  std::int32_t& y_min_ = state_.y_min;
-  std::int32_t& z_min_ = state_.z_min;
-  std::int64_t& row_length_ = state_.row_length;
-  std::int64_t& z_rows_ = state_.z_rows;
-  std::vector<std::uint32_t>& row_start_ = state_.row_start;
-  std::vector<std::uint8_t>& flag_ = state_.flag;
-  std::vector<std::uint8_t>& run_ = state_.run;
-  std::vector<std::uint8_t>& started_ = state_.started;
+  // The mesh and lattice state of the merge.
+  std::vector<VertexId> parent_;       // union-find: the vertex that absorbed this one
+  std::vector<VertexId> next_member_;  // ring through each class
+  std::vector<VertexId> next_fan_;     // ring through the members with live triangles
+  std::vector<std::uint32_t> class_size_;  // members of the class, valid at its root
+  std::vector<std::uint32_t> offset_;  // CSR vertex → incident triangles
+  std::vector<TriangleId> incident_;
+  std::vector<std::uint32_t> live_end_;  // end of the still-live prefix of each CSR list
+  std::vector<std::uint8_t> alive_;
+  std::vector<TriangleId> witness_;    // hint: the triangle that last kept a vertex near
+  std::vector<std::uint32_t> witness_version_;  // version of the witness when it was found
+  std::vector<std::uint32_t> version_;  // per triangle: changes of shape so far
 
-  // This worker's own scratch.
+  std::int32_t y_min_ = 0;
+  std::int32_t z_min_ = 0;
+  std::int64_t row_length_ = 0;
+  std::int64_t z_rows_ = 0;
+  std::vector<std::uint32_t> row_start_;
+  std::vector<std::uint8_t> flag_;     // FLAG of §4.1, per cube record
+  std::vector<std::uint8_t> run_;      // cubes in the run that ends at this cube
+  std::vector<std::uint8_t> started_;  // this cube merged with its successor
+
+  // Scratch.
   std::vector<VertexId> pending_witness_;  // witnesses found on moved triangles
   std::vector<std::uint8_t> fan_slot_;  // position of a triangle in the fan checked
   bool in_transaction_ = false;
@@ -1017,8 +994,7 @@ void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
   MergeStats local;
   local.triangles_before = mesh.triangles.size();
   local.vertices_before = mesh.positions.size();
-  MergeState state;
-  Merger merger(mesh, cubes, options, state, local);
+  Merger merger(mesh, cubes, options, local);
   merger.build();
   merger.merge_all();
   if (options.remove_slivers) merger.remove_slivers();
