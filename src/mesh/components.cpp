@@ -150,7 +150,16 @@ bool box_inside(const Components& c, std::size_t inner, std::size_t outer) {
 class Containment {
  public:
   Containment(const core::TriangleMesh& mesh, const Components& c)
-      : mesh_(mesh), c_(c), grids_(c.count) {}
+      : mesh_(mesh), c_(c), grids_(c.count), first_(c.count + 1, 0) {
+    // Triangles by component (CSR), once: grids of many shells then cost their own size.
+    for (std::uint32_t label : c.of_triangle) ++first_[label + 1];
+    for (std::size_t k = 0; k < c.count; ++k) first_[k + 1] += first_[k];
+    of_component_.resize(c.of_triangle.size());
+    std::vector<std::uint32_t> fill(first_.begin(), first_.end() - 1);
+    for (std::uint32_t i = 0; i < c.of_triangle.size(); ++i) {
+      of_component_[fill[c.of_triangle[i]]++] = i;
+    }
+  }
 
   bool inside(std::size_t inner, std::size_t outer) {
     if (inner == outer || !box_inside(c_, inner, outer)) return false;
@@ -175,7 +184,7 @@ class Containment {
 
  private:
   // A fixed, deliberately irrational direction, so rays through edges and vertices of lattice
-  // meshes are unlikely; kU and kV complete it to an orthonormal basis.
+  // meshes are unlikely; kU and kV = kDirection × kU span the plane across it (the grid's).
   static constexpr Point kDirection = {0.5773502691896258, 0.5612486080160912,
                                        0.5929270612815711};
   static constexpr Point kU = {0.6970374326528527, -0.7170347393820747, 0.0};  // ⟂ kDirection
@@ -203,9 +212,9 @@ class Containment {
     shadows.reserve(c_.triangles[outer]);
     constexpr double kInf = std::numeric_limits<double>::infinity();
     double u_lo = kInf, u_hi = -kInf, v_lo = kInf, v_hi = -kInf;
-    for (std::size_t i = 0; i < mesh_.triangles.size(); ++i) {
-      if (c_.of_triangle[i] != outer) continue;
-      Shadow s{static_cast<std::uint32_t>(i), kInf, -kInf, kInf, -kInf};
+    for (std::uint32_t k = first_[outer]; k < first_[outer + 1]; ++k) {
+      const std::uint32_t i = of_component_[k];
+      Shadow s{i, kInf, -kInf, kInf, -kInf};
       for (const std::uint32_t vertex : mesh_.triangles[i]) {
         const Point p = to_point(mesh_.positions[vertex]);
         const double u = dot(p, kU);
@@ -257,6 +266,8 @@ class Containment {
   const core::TriangleMesh& mesh_;
   const Components& c_;
   std::vector<ShadowGrid> grids_;
+  std::vector<std::uint32_t> first_;         // CSR: component → its triangles
+  std::vector<std::uint32_t> of_component_;
 };
 
 }  // namespace
