@@ -56,16 +56,16 @@ struct SeriesInfo {
   std::vector<std::string> warnings;  // header warnings of its files
 
   bool usable() const { return role == SeriesRole::volume && geometry.ok(); }
-  // Voxels of the volume it loads to (the uniform grid; 0 when refused).
-  std::uint64_t voxels() const {
-    return std::uint64_t{rows} * columns *
-           static_cast<std::uint64_t>(geometry.output_slices > 0 ? geometry.output_slices : 0);
-  }
-  // Its grid: voxels along columns, rows and slices, and their spacing in mm (the pixel
-  // spacing of its first slice, 1 mm when absent, and the slice step).
+  // Its grid: voxels along columns, rows and slices (none when refused), and their spacing
+  // in mm (the pixel spacing of its first slice, 1 mm when absent, and the slice step).
   std::array<std::uint64_t, 3> grid_size() const {
     return {columns, rows,
             static_cast<std::uint64_t>(geometry.output_slices > 0 ? geometry.output_slices : 0)};
+  }
+  // Voxels of the volume it loads to.
+  std::uint64_t voxels() const {
+    const auto size = grid_size();
+    return size[0] * size[1] * size[2];
   }
   std::array<double, 3> spacing_mm() const {
     const auto& pixel = slices.empty() ? std::nullopt : slices.front().pixel_spacing;
