@@ -25,10 +25,10 @@
 // Memory of merge_types (the whole-mesh approach of §4.5, "polygonize, merge, compact"):
 // peak ≈ the MC mesh (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube
 // (lattice records from the extractor) + 32 bytes per vertex (union-find parent, class ring,
-// fan ring, class size, CSR offset and live end, distance witness and its version) + 18
-// bytes per triangle (CSR incidence, alive flag, shape version) + 1 byte per triangle (fan
-// slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4 bytes per cube row
-// (y, z) + the compacted output — about 70 bytes per MC triangle (abdomen bone: 843,594
+// fan ring, class size, CSR offset and live end, distance witness and its version) + 30
+// bytes per triangle (CSR incidence, current corners, alive flag, shape version) + 1 byte per
+// triangle (fan slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4 bytes per
+// cube row (y, z) + the compacted output — about 82 bytes per MC triangle (abdomen bone: 843,594
 // triangles, 422,065 vertices, 411,058 cubes). No
 // per-vertex heap allocation, no hash map: everything is a flat array indexed by vertex,
 // triangle or cube record.
@@ -39,7 +39,7 @@
 // output; its seams (the vertices of its first and last slice) lie on its boundary, so no
 // merge moves them or moves a vertex onto them, and the pieces join exactly where
 // extract_isosurface's slabs join. `threads` pieces are made at a time, so
-// peak ≈ the output mesh + threads × (70 bytes per MC triangle of one piece + 31 bytes × the
+// peak ≈ the output mesh + threads × (82 bytes per MC triangle of one piece + 31 bytes × the
 // padded slice area, the extractor's slice buffers) — bounded by a few dozen slices whatever
 // the number of slices (abdomen CT, slices repeated up to N = 1072: README). The output is
 // the same for every thread count; it depends on slab_layers (runs stop at seams).
