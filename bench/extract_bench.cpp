@@ -1,15 +1,16 @@
 // extract_bench: surface extraction speed and quality on a real series or a synthetic volume.
 //
-//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm] [--threads 1,2]
-//                 [--repeat 5]
+//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012]
+//                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //
 // Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,
 // vertices, the peak resident memory added during extraction, and the validity of the surface
 // (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
 // mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
-// mm; for mc the ambiguity statistics of the paper's Table 4. The same volume can be written as
-// NRRD for bench/vtk_extract.py, so that VTK's filters run on identical samples.
+// mm (tm012: type merging without type 3); for mc the ambiguity statistics of the paper's Table 4.
+// The same volume can be written as NRRD for bench/vtk_extract.py, so that VTK's filters run on
+// identical samples.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -57,7 +58,8 @@ using typemerge::bench::split;
 int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
-               "       [--algorithms mc,classic,tm] [--threads 1,2] [--repeat 5] [--write-nrrd FILE]\n");
+               "       [--algorithms mc,classic,tm,tm012] [--threads 1,2] [--repeat 5]\n"
+               "       [--write-nrrd FILE]\n");
   return 2;
 }
 
@@ -113,9 +115,12 @@ int main(int argc, char** argv) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
         core::AmbiguityStats ambiguity;
+        const bool merged = algorithm == "tm" || algorithm == "tm012";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
         else if (algorithm == "mc") options.stats = &ambiguity;
-        else if (algorithm != "tm") return usage();
+        else if (!merged) return usage();
+        core::MergeOptions merge;
+        merge.type3 = algorithm == "tm";
         std::vector<double> times;
         core::TriangleMesh mesh;
         core::MergeStats merge_stats;
@@ -127,8 +132,8 @@ int main(int argc, char** argv) {
           const long before = current_memory_kib();
           reset_peak_memory();
           const auto start = std::chrono::steady_clock::now();
-          mesh = algorithm == "tm" ? core::extract_type_merged(volume, iso, options, {}, &merge_stats)
-                                   : core::extract_isosurface(volume, iso, options);
+          mesh = merged ? core::extract_type_merged(volume, iso, options, merge, &merge_stats)
+                        : core::extract_isosurface(volume, iso, options);
           const auto end = std::chrono::steady_clock::now();
           peak_added = std::max(peak_added, peak_memory_kib() - before);
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
@@ -157,7 +162,7 @@ int main(int argc, char** argv) {
                                  ambiguity.cubes_with_ambiguous_faces[6]) /
                           double(std::max<std::size_t>(1, ambiguity.boundary_cubes)));
         }
-        if (algorithm == "tm" && !reference.empty() && thread_text == split(thread_list).front()) {
+        if (merged && !reference.empty() && thread_text == split(thread_list).front()) {
           const core::MeshCheck mc_check = core::check_mesh(reference);
           const auto voxels = core::mesh_distance(reference, mesh);
           core::TriangleMesh reference_mm = reference, mesh_mm = mesh;
@@ -172,15 +177,16 @@ int main(int argc, char** argv) {
                       static_cast<long long>(mc_check.euler_characteristic), check.components,
                       mc_check.components);
           const auto& s = merge_stats;
-          std::printf("    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), capped %zu, "
-                      "abandoned %zu; collapses %zu of %zu; rejected: boundary %zu "
-                      "link %zu fan %zu normal %zu gradient %zu distance %zu class %zu\n",
-                      s.cubes_merged_by_type[0], s.cubes_merged_by_type[1],
-                      s.cubes_merged_by_type[2], s.hexagon_merges, s.minor_merges, s.runs_capped,
-                      s.merges_abandoned, s.collapses_done, s.collapses_tried,
-                      s.rejected_boundary, s.rejected_link, s.rejected_fan_size,
-                      s.rejected_normal, s.rejected_gradient, s.rejected_distance,
-                      s.rejected_class_size);
+          std::printf(
+              "    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), type-3 blocks %zu, "
+              "capped %zu, "
+              "abandoned %zu; collapses %zu of %zu; rejected: boundary %zu "
+              "link %zu fan %zu normal %zu gradient %zu distance %zu class %zu\n",
+              s.cubes_merged_by_type[0], s.cubes_merged_by_type[1], s.cubes_merged_by_type[2],
+              s.hexagon_merges, s.minor_merges, s.type3_groups, s.runs_capped, s.merges_abandoned,
+              s.collapses_done, s.collapses_tried, s.rejected_boundary, s.rejected_link,
+              s.rejected_fan_size, s.rejected_normal, s.rejected_gradient, s.rejected_distance,
+              s.rejected_class_size);
         }
       }
     }

@@ -83,7 +83,8 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       details = {{"mc_triangles", std::to_string(stats.triangles_before)},
                  {"merged_cubes", std::to_string(stats.cubes_merged_by_type[0] +
                                                  stats.cubes_merged_by_type[1] +
-                                                 stats.cubes_merged_by_type[2])}};
+                                                 stats.cubes_merged_by_type[2])},
+                 {"type3_blocks", std::to_string(stats.type3_groups)}};
     } else {
       mesh = core::extract_isosurface(source, iso, extract);
     }

@@ -900,6 +900,106 @@ class Merger {
     ++stats_.merges_by_direction[static_cast<std::size_t>(best)];
   }
 
+  // ---- Type 3 (spec §3.4, D10) ----------------------------------------------------------------
+
+  // Every block of four cubes in a lattice plane that one plane creates with corner cubes on
+  // a diagonal (type3_blocks; the slice first, then xz and yz), in scan order of its first
+  // cube: the surface vertex on the block's centre edge, if no earlier collapse absorbed it,
+  // is collapsed onto one of the corner cubes' two other vertices (its neighbours on the bold
+  // diagonal; the first that passes the checks of §4.5), with the sliver clean-up, in one
+  // transaction. After the type 0–2 pass, as the spec asks ("optional and last"). Blocks are
+  // found by their cubes' MC indices, so a block some type 0–2 merge went through is tried too
+  // (the checks judge the surface as it is now): on the abdomen CT that triples the blocks.
+  void merge_type3() {
+    for (std::size_t plane = 0; plane < kType3Planes.size(); ++plane) {
+      const std::vector<Type3Block>& blocks = type3_blocks()[plane];
+      const Type3Plane& axes = kType3Planes[plane];
+      std::array<bool, 256> possible_first{};
+      for (const Type3Block& block : blocks) possible_first[block.key & 0xFFu] = true;
+      for (std::size_t r = 0; r < cubes_.size(); ++r) {
+        if (!possible_first[cubes_[r].index]) continue;
+        std::array<std::size_t, 4> block{r, 0, 0, 0};
+        const std::array<std::array<int, 3>, 3> offsets = {
+            axes.h, axes.v, {axes.h[0] + axes.v[0], axes.h[1] + axes.v[1], axes.h[2] + axes.v[2]}};
+        bool complete = true;
+        for (int k = 0; k < 3 && complete; ++k) {
+          const std::int64_t c = find_cube(cubes_[r].x + offsets[k][0], cubes_[r].y + offsets[k][1],
+                                           cubes_[r].z + offsets[k][2]);
+          complete = c >= 0;
+          block[k + 1] = static_cast<std::size_t>(c);
+        }
+        if (!complete) continue;
+        const std::uint32_t key = type3_key(cubes_[block[0]].index, cubes_[block[1]].index,
+                                            cubes_[block[2]].index, cubes_[block[3]].index);
+        const auto it =
+            std::lower_bound(blocks.begin(), blocks.end(), key,
+                             [](const Type3Block& b, std::uint32_t k) { return b.key < k; });
+        if (it == blocks.end() || it->key != key) continue;
+        merge_type3_block(block, axes, it->bold_bl_tr);
+      }
+    }
+  }
+
+  // Block cubes BL, BR, TL, TR of a block in plane `axes`; the corner cubes are BL and TR, or
+  // BR and TL. Their cut edges other than the centre edge are the block's internal edges that
+  // carry a vertex next to the centre vertex (two per corner cube): the centre vertex goes to
+  // the first of them that passes the checks, then the spec's optional step, each other one
+  // that passes them joins it too (on a plane, the block's patches become one polygon).
+  void merge_type3_block(const std::array<std::size_t, 4>& block, const Type3Plane& axes,
+                         bool bold_bl_tr) {
+    const std::array<int, 2> corners =
+        bold_bl_tr ? std::array<int, 2>{0, 3} : std::array<int, 2>{1, 2};
+    const VertexId centre = edge_vertex(block[corners[0]], type3_centre_edge(axes, corners[0]));
+    if (find(centre) != centre) return;  // absorbed already: not this block's vertex any more
+    std::array<VertexId, 4> inner{};
+    int inner_count = 0;
+    for (int k : corners) {
+      const unsigned cut = kCubeCutEdges[cubes_[block[k]].index];
+      const int own_centre = type3_centre_edge(axes, k);
+      for (int e = 0; e < kCubeEdgeCount; ++e) {
+        if (e == own_centre || ((cut >> e) & 1u) == 0) continue;
+        assert(inner_count < 4);  // a corner configuration cuts three edges
+        inner[static_cast<std::size_t>(inner_count++)] = edge_vertex(block[k], e);
+      }
+    }
+    begin_transaction();
+    int first = 0;
+    while (first < inner_count && !try_collapse(centre, inner[static_cast<std::size_t>(first)])) {
+      ++first;
+    }
+    if (first == inner_count) {
+      rollback();
+      return;
+    }
+    const VertexId target = inner[static_cast<std::size_t>(first)];
+    for (int i = 0; i < inner_count; ++i) {
+      if (i != first) try_collapse(inner[static_cast<std::size_t>(i)], target);
+    }
+    SmallSet<16> touched;
+    touched.insert(target);
+    if (!clean_touched_slivers(touched)) {
+      ++stats_.rejected_sliver;
+      ++stats_.merges_abandoned;
+      rollback();
+      return;
+    }
+    commit();
+    ++stats_.type3_groups;
+  }
+
+  // The block's centre edge as an edge of its cube k (0 = BL, 1 = BR, 2 = TL, 3 = TR): it
+  // starts at h + v − (the cube's offset in the block) and runs along w.
+  static int type3_centre_edge(const Type3Plane& axes, int k) {
+    std::array<int, 3> from{};
+    for (int i = 0; i < 3; ++i) {
+      from[i] =
+          axes.h[i] + axes.v[i] - ((k & 1) != 0 ? axes.h[i] : 0) - ((k & 2) != 0 ? axes.v[i] : 0);
+    }
+    return detail::edge_between(
+        detail::vertex_at(from[0], from[1], from[2]),
+        detail::vertex_at(from[0] + axes.w[0], from[1] + axes.w[1], from[2] + axes.w[2]));
+  }
+
   // ---- Sliver clean-up (D6) -----------------------------------------------------------------
 
   // A sliver's middle vertex (opposite its longest edge) lies on that edge; collapsing it onto
@@ -1002,14 +1102,15 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
     sum.merges_by_direction[i] += part.merges_by_direction[i];
   }
   std::size_t MergeStats::*const counters[] = {
-      &MergeStats::hexagon_merges,      &MergeStats::minor_merges,
-      &MergeStats::runs_capped,         &MergeStats::merges_abandoned,
-      &MergeStats::rejected_sliver,     &MergeStats::collapses_tried,
-      &MergeStats::collapses_done,      &MergeStats::rejected_boundary,
-      &MergeStats::rejected_link,       &MergeStats::rejected_fan_size,
-      &MergeStats::rejected_normal,     &MergeStats::rejected_gradient,
-      &MergeStats::rejected_distance,   &MergeStats::rejected_class_size,
-      &MergeStats::sliver_collapses,    &MergeStats::slivers_left};
+      &MergeStats::hexagon_merges,    &MergeStats::minor_merges,
+      &MergeStats::runs_capped,       &MergeStats::merges_abandoned,
+      &MergeStats::rejected_sliver,   &MergeStats::collapses_tried,
+      &MergeStats::collapses_done,    &MergeStats::rejected_boundary,
+      &MergeStats::rejected_link,     &MergeStats::rejected_fan_size,
+      &MergeStats::rejected_normal,   &MergeStats::rejected_gradient,
+      &MergeStats::rejected_distance, &MergeStats::rejected_class_size,
+      &MergeStats::sliver_collapses,  &MergeStats::slivers_left,
+      &MergeStats::type3_groups};
   for (auto counter : counters) sum.*counter += part.*counter;
 }
 
@@ -1021,7 +1122,6 @@ namespace {
 void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
                        const MergeOptions& options, MergeStats* stats,
                        std::vector<VertexId>* id_map) {
-  assert(!options.type3 && "type 3 is not implemented");
   assert(options.run_cap >= 1 && options.epsilon_voxels >= 0.0);
   MergeStats local;
   local.triangles_before = mesh.triangles.size();
@@ -1029,6 +1129,7 @@ void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
   Merger merger(mesh, cubes, options, local);
   merger.build();
   merger.merge_all();
+  if (options.type3) merger.merge_type3();
   if (options.remove_slivers) merger.remove_slivers();
   mesh = merger.result(id_map);
   local.triangles_after = mesh.triangles.size();

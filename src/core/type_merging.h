@@ -2,7 +2,7 @@
 // volumetric data", The Visual Computer 12:406–419), as specified in type-merging-spec.md:
 // §1.5 scan order, §2.3 moving table, §3 / Appendix A type table (tables in
 // type_merging_tables.h), §4.1–4.2 the merge procedure with FLAG consistency, §4.4 decisions
-// D1–D9 and D11, §4.5 the checked variant. Type 3 (§3.4, D10) is not implemented.
+// D1–D11, §4.5 the checked variant, and type 3 (§3.4, D10) last.
 //
 // What it does: the marching-cubes mesh is reduced by merging runs of cubes with the same
 // index along a direction of the type table. Each merge of C with C + d moves the surface
@@ -12,7 +12,11 @@
 // turns by at most max_normal_change_deg, and its normal stays within
 // max_normal_to_gradient_deg of the mean MC vertex normal, i.e. of −∇f), and every original
 // MC vertex absorbed by an affected vertex stays within epsilon_voxels of the new mesh. Runs
-// are capped at run_cap cubes. Surviving vertices keep their MC position and normal, so
+// are capped at run_cap cubes. Type 3 then removes, with the same checks, the vertex at the
+// centre of each 2×2 block of cubes that one plane makes with corner cubes on a diagonal
+// (type3_blocks in type_merging_tables.h: the paper's four slice groups, their mirror images
+// and the same blocks in the xz and yz planes) and the vertices next to it on the block's
+// internal edges, as spec §3.4 suggests. Surviving vertices keep their MC position and normal, so
 // every output vertex lies exactly on the MC surface. Zero-area slivers left by collinear
 // vertices (frequent on flat data) are removed by exact collapses afterwards (D6).
 //
@@ -71,8 +75,11 @@ struct MergeOptions {
   // body meets the volume border, classes otherwise grow to over 1,500 vertices. Costs little
   // reduction: abdomen CT skin +1.3 % triangles, bone +0.004 %.
   std::uint32_t max_class_vertices = 64;
-  // D10: type-3 groups (spec §3.4). Not implemented; must be false.
-  bool type3 = false;
+  // D10: type-3 blocks (spec §3.4), after types 0–2. They reduce what types 0–2 cannot
+  // (generic plane (1,2,3): 100 % → 44 % of MC) and cost some time; abdomen CT, 1 thread
+  // (`extract_bench --algorithms mc,tm012,tm`): bone 300 HU 68.4 % → 57.0 % of MC triangles,
+  // skin −500 HU 39.9 % → 30.1 %, Hausdorff still 0.5 voxel.
+  bool type3 = true;
   // D4: hexagons merge along the paper's two lines with an x component; true adds the third.
   bool hexagon_all_lines = false;
   // §4.5 fold-over tests.
@@ -99,6 +106,7 @@ struct MergeStats {
   std::size_t hexagon_merges = 0;
   std::size_t minor_merges = 0;
   std::array<std::size_t, kMergeDirectionCount> merges_by_direction{};
+  std::size_t type3_groups = 0;  // type-3 blocks whose centre vertex was removed
   std::size_t runs_capped = 0;  // a merge was possible but the run had run_cap cubes
   std::size_t merges_abandoned = 0;  // some collapse was rejected: the merge was undone
   std::size_t rejected_sliver = 0;   // of those: a sliver it made could not be removed
@@ -125,7 +133,7 @@ struct MergeStats {
 // Merges `mesh` in place, serially in scan order, and compacts it (unused vertices dropped,
 // the rest renumbered in their original order, triangles kept in their original order).
 // Preconditions: `mesh` and `cubes` come from one extract_isosurface call (cubes = its
-// ExtractOptions::cubes output) and have not been modified; options.type3 is false;
+// ExtractOptions::cubes output) and have not been modified;
 // options.run_cap >= 1; options.epsilon_voxels >= 0.
 void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
                  const MergeOptions& options = {}, MergeStats* stats = nullptr);

@@ -38,9 +38,11 @@
 //  * types are looked up with the complement representative rep(c) = c < 128 ? c : 255 − c.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <cstdint>
+#include <vector>
 
 #include "core/cube_tables.h"
 
@@ -252,6 +254,112 @@ inline constexpr std::array<TypeEntry, 128> kTypeTable = detail::build_type_tabl
 
 constexpr const TypeEntry& type_of(unsigned cube_index) {
   return kTypeTable[detail::complement_rep(cube_index)];
+}
+
+// ---- Type 3 (spec §3.4, decision D10) ----------------------------------------------------------
+//
+// A type-3 group is a 2×2 block of cubes in one slice (BL = (x, y), BR = (x+1, y), TL = (x,
+// y+1), TR = (x+1, y+1), one z) that a single plane creates and whose cubes on one diagonal
+// are corner configurations (one vertex cut off). Every such block has a surface vertex on the
+// lattice z-edge at its centre (the cut-off corners are that edge's ends), and the four patches
+// around it lie on one plane, so that vertex can go. The paper lists four groups up to its
+// bold positions (spec §3.4's G1–G4); the blocks here are every one a plane creates, found by
+// the enumeration the type table uses: they include G1–G4 (tests/core/type_merging_tables_test
+// checks it) and their mirror images, which the paper seems to have left out (spec §3.4).
+//
+// A block is keyed by its four raw cube indices, BL | BR << 8 | TL << 16 | TR << 24.
+
+struct Type3Block {
+  std::uint32_t key = 0;
+  bool bold_bl_tr = false;  // the corner cubes are BL and TR (else TL and BR)
+};
+
+constexpr std::uint32_t type3_key(unsigned bl, unsigned br, unsigned tl, unsigned tr) {
+  return bl | br << 8 | tl << 16 | tr << 24;
+}
+
+// The plane of a block: its cubes are BL = origin, BR = origin + h, TL = origin + v,
+// TR = origin + h + v; the block's centre edge runs along w from origin + h + v.
+struct Type3Plane {
+  std::array<int, 3> h;
+  std::array<int, 3> v;
+  std::array<int, 3> w;
+};
+// The slice (xy: right = R, up = T, as in the paper), then xz and yz (spec §3.4 lists them
+// too; the paper's slice-wise processing suggests it used only the first).
+inline constexpr std::array<Type3Plane, 3> kType3Planes{{
+    {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}},
+    {{1, 0, 0}, {0, 0, 1}, {0, 1, 0}},
+    {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}},
+}};
+
+namespace detail {
+
+constexpr bool is_corner_configuration(unsigned c) {
+  return std::popcount(c) == 1 || std::popcount(c) == 7;
+}
+
+// Raw index of the cube at `origin` for the plane n·p > lo.
+constexpr unsigned block_cube_index(const std::array<int, 3>& n, int lo,
+                                    const std::array<int, 3>& origin) {
+  unsigned c = 0;
+  for (int v = 0; v < kCubeVertexCount; ++v) {
+    const auto& o = kCubeVertexOffset[v];
+    const int value =
+        n[0] * (origin[0] + o[0]) + n[1] * (origin[1] + o[1]) + n[2] * (origin[2] + o[2]);
+    if (value > lo) c |= 1u << v;
+  }
+  return c;
+}
+
+// Every block in `plane` that the planes n·p = t create, |n_i| <= max_component, t generic;
+// sorted by key. (Built at run time: at compile time it exceeds GCC's constexpr operation
+// limit.)
+inline std::vector<Type3Block> enumerate_type3_blocks(const Type3Plane& plane, int max_component) {
+  std::vector<Type3Block> blocks;
+  const int k = max_component;
+  const std::array<int, 3> zero{0, 0, 0};
+  std::array<int, 3> hv{};
+  for (int i = 0; i < 3; ++i) hv[i] = plane.h[i] + plane.v[i];
+  for (int nx = -k; nx <= k; ++nx) {
+    for (int ny = -k; ny <= k; ++ny) {
+      for (int nz = -k; nz <= k; ++nz) {
+        const std::array<int, 3> n{nx, ny, nz};
+        // Every generic threshold: just above each value the block's lattice points take
+        // (|n·p| <= 5k on the 3×3×2 points).
+        for (int lo = -5 * k; lo <= 5 * k; ++lo) {
+          const unsigned bl = block_cube_index(n, lo, zero);
+          const unsigned br = block_cube_index(n, lo, plane.h);
+          const unsigned tl = block_cube_index(n, lo, plane.v);
+          const unsigned tr = block_cube_index(n, lo, hv);
+          bool cut = true;
+          for (unsigned c : {bl, br, tl, tr}) cut = cut && c != 0 && c != 255;
+          if (!cut) continue;
+          const bool bl_tr = is_corner_configuration(bl) && is_corner_configuration(tr);
+          const bool tl_br = is_corner_configuration(tl) && is_corner_configuration(br);
+          if (bl_tr || tl_br) blocks.push_back({type3_key(bl, br, tl, tr), bl_tr});
+        }
+      }
+    }
+  }
+  std::sort(blocks.begin(), blocks.end(),
+            [](const Type3Block& a, const Type3Block& b) { return a.key < b.key; });
+  blocks.erase(std::unique(blocks.begin(), blocks.end(),
+                           [](const Type3Block& a, const Type3Block& b) { return a.key == b.key; }),
+               blocks.end());
+  return blocks;
+}
+
+}  // namespace detail
+
+// The type-3 blocks of each plane of kType3Planes (enumerated once, on first use), sorted
+// by key.
+inline const std::array<std::vector<Type3Block>, 3>& type3_blocks() {
+  static const std::array<std::vector<Type3Block>, 3> blocks = {
+      detail::enumerate_type3_blocks(kType3Planes[0], detail::kMaxNormalComponent),
+      detail::enumerate_type3_blocks(kType3Planes[1], detail::kMaxNormalComponent),
+      detail::enumerate_type3_blocks(kType3Planes[2], detail::kMaxNormalComponent)};
+  return blocks;
 }
 
 // ---- Invariants (spec §2.1, §3.1) --------------------------------------------------------------

@@ -1,13 +1,17 @@
 // Tests of type_merging_tables.h: the generated moving table against spec §2.3 and against
 // the slide geometry; the generated type table against Appendix A; and the property that
-// defines the type table: on a plane containing d, a cube whose index lists d repeats at C + d.
+// defines the type table: on a plane containing d, a cube whose index lists d repeats at C + d;
+// the type-3 blocks against spec §3.4 and against random planes.
 #include "core/type_merging_tables.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
+#include <bit>
 #include <cstdint>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -253,6 +257,132 @@ TEST(TypeMergingTables, EveryListedLineHasAPlane) {
       }
       EXPECT_TRUE(realised) << c << " along " << kMergeDirectionName[d];
     }
+  }
+}
+
+// ---- Type 3 (spec §3.4) ------------------------------------------------------------------------
+
+bool has_type3_block(std::size_t plane, std::uint32_t key, bool* bold_bl_tr) {
+  const auto& blocks = type3_blocks()[plane];
+  const auto it =
+      std::find_if(blocks.begin(), blocks.end(), [&](const Type3Block& b) { return b.key == key; });
+  if (it == blocks.end()) return false;
+  *bold_bl_tr = it->bold_bl_tr;
+  return true;
+}
+
+// The four groups of spec §3.4 (complement representatives; the fixed cubes, then the two
+// choices at each variable position), in the slice plane.
+struct SpecGroup {
+  const char* name;
+  bool bold_bl_tr;
+  // BL, BR, TL, TR: one value where the cube is fixed, two where it varies.
+  std::array<std::array<unsigned, 2>, 4> cubes;
+};
+constexpr SpecGroup kSpecGroups[] = {
+    {"G1", true, {{{4, 4}, {78, 110}, {70, 78}, {16, 16}}}},
+    {"G2", true, {{{64, 64}, {27, 59}, {19, 27}, {1, 1}}}},
+    {"G3", false, {{{39, 55}, {127, 127}, {2, 2}, {35, 39}}}},
+    {"G4", false, {{{98, 114}, {8, 8}, {32, 32}, {114, 118}}}},
+};
+
+TEST(TypeMergingTables, Type3BlocksIncludeTheSpecGroups) {
+  // The spec names cubes by complement representative, each cube on its own (one plane can
+  // make 4 next to 177, whose representative is 78): compare blocks that way.
+  std::set<std::array<unsigned, 4>> reps;
+  std::set<std::array<unsigned, 4>> bold_bl_tr;
+  for (const Type3Block& block : type3_blocks()[0]) {
+    std::array<unsigned, 4> r{};
+    for (int k = 0; k < 4; ++k) r[k] = detail::complement_rep((block.key >> (8 * k)) & 0xFFu);
+    reps.insert(r);
+    if (block.bold_bl_tr) bold_bl_tr.insert(r);
+  }
+  for (const SpecGroup& group : kSpecGroups) {
+    SCOPED_TRACE(group.name);
+    for (unsigned choice = 0; choice < 16; ++choice) {
+      std::array<unsigned, 4> r{};
+      for (int k = 0; k < 4; ++k) r[k] = group.cubes[k][(choice >> k) & 1u];
+      EXPECT_EQ(reps.count(r), 1u) << r[0] << " " << r[1] << " " << r[2] << " " << r[3];
+      EXPECT_EQ(bold_bl_tr.count(r), group.bold_bl_tr ? 1u : 0u);
+    }
+  }
+  // 28 blocks up to complement (spec out/type3_groups.md lists 28 for the slice): the 16
+  // combinations of G1–G4 and their mirror images; the same count in the other two planes.
+  EXPECT_EQ(reps.size(), 28u);
+  for (std::size_t plane = 0; plane < 3; ++plane) EXPECT_EQ(type3_blocks()[plane].size(), 56u);
+}
+
+// Every block whose diagonal cubes are corner configurations that a random (real) plane makes
+// is in the table, every table entry is made by some plane, and in every one the block's
+// centre edge is cut in all four cubes.
+TEST(TypeMergingTables, Type3BlocksAreExactlyWhatPlanesMake) {
+  std::mt19937 rng(1996);
+  std::normal_distribution<double> gaussian;
+  std::uniform_real_distribution<double> offset(-2.0, 2.0);
+  auto corner = [](unsigned c) { return std::popcount(c) == 1 || std::popcount(c) == 7; };
+  for (std::size_t plane = 0; plane < 3; ++plane) {
+    const Type3Plane& axes = kType3Planes[plane];
+    std::set<std::uint32_t> seen;
+    for (int trial = 0; trial < 200000; ++trial) {
+      const std::array<double, 3> n{gaussian(rng), gaussian(rng), gaussian(rng)};
+      const double t = offset(rng);
+      auto cube = [&](const std::array<int, 3>& origin) {
+        unsigned c = 0;
+        for (int v = 0; v < kCubeVertexCount; ++v) {
+          const auto& o = kCubeVertexOffset[v];
+          double value = 0.0;
+          for (int i = 0; i < 3; ++i) value += n[i] * (origin[i] + o[i]);
+          if (value > t) c |= 1u << v;
+        }
+        return c;
+      };
+      const std::array<int, 3> hv{axes.h[0] + axes.v[0], axes.h[1] + axes.v[1],
+                                  axes.h[2] + axes.v[2]};
+      const unsigned bl = cube({0, 0, 0});
+      const unsigned br = cube(axes.h);
+      const unsigned tl = cube(axes.v);
+      const unsigned tr = cube(hv);
+      bool cut = true;
+      for (unsigned c : {bl, br, tl, tr}) cut = cut && c != 0 && c != 255;
+      if (!cut || (!(corner(bl) && corner(tr)) && !(corner(tl) && corner(br)))) continue;
+      const std::uint32_t key = type3_key(bl, br, tl, tr);
+      bool bold = false;
+      ASSERT_TRUE(has_type3_block(plane, key, &bold)) << plane << ": " << key;
+      seen.insert(key);
+    }
+    EXPECT_EQ(seen.size(), type3_blocks()[plane].size()) << "plane " << plane;
+    for (const Type3Block& block : type3_blocks()[plane]) {
+      // The centre edge, h + v .. h + v + w in block coordinates, in each cube.
+      for (int k = 0; k < 4; ++k) {
+        const unsigned c = (block.key >> (8 * k)) & 0xFFu;
+        std::array<int, 3> from{};
+        for (int i = 0; i < 3; ++i) {
+          from[i] = axes.h[i] * ((k & 1) != 0 ? 0 : 1) + axes.v[i] * ((k & 2) != 0 ? 0 : 1);
+        }
+        int lower = -1;
+        int upper = -1;
+        for (int v = 0; v < kCubeVertexCount; ++v) {
+          const auto& o = kCubeVertexOffset[v];
+          if (o == from) lower = v;
+          if (o[0] == from[0] + axes.w[0] && o[1] == from[1] + axes.w[1] &&
+              o[2] == from[2] + axes.w[2]) {
+            upper = v;
+          }
+        }
+        ASSERT_GE(lower, 0);
+        ASSERT_GE(upper, 0);
+        EXPECT_NE((c >> lower) & 1u, (c >> upper) & 1u) << "block " << block.key << " cube " << k;
+      }
+      const unsigned bl = block.key & 0xFFu;
+      const unsigned tr = block.key >> 24;
+      EXPECT_EQ(block.bold_bl_tr, corner(bl) && corner(tr));
+    }
+  }
+  // The enumeration behind the table is complete at normal components of 3 (as the type
+  // table's, spec §3.1): 6 finds nothing more.
+  for (std::size_t plane = 0; plane < 3; ++plane) {
+    EXPECT_EQ(detail::enumerate_type3_blocks(kType3Planes[plane], 6).size(),
+              type3_blocks()[plane].size());
   }
 }
 
