@@ -178,6 +178,16 @@ struct SmallSet {
   }
 };
 
+// Fans hold a dozen triangles: insertion sort beats std::sort's dispatch at that size.
+void insertion_sort(VertexId* items, int n) {
+  for (int i = 1; i < n; ++i) {
+    const VertexId v = items[i];
+    int j = i;
+    for (; j > 0 && items[j - 1] > v; --j) items[j] = items[j - 1];
+    items[j] = v;
+  }
+}
+
 struct Fan {
   std::array<TriangleId, kMaxFan> triangles;
   int size = 0;
@@ -518,9 +528,12 @@ class Merger {
       link.insert(next[i]);
       link.insert(prev[i]);
     }
-    std::sort(next.begin(), next.begin() + n);
-    std::sort(prev.begin(), prev.begin() + n);
-    return std::equal(next.begin(), next.begin() + n, prev.begin());
+    insertion_sort(next.data(), n);
+    insertion_sort(prev.data(), n);
+    for (int i = 0; i < n; ++i) {
+      if (next[i] != prev[i]) return false;
+    }
+    return true;
   }
 
   bool try_collapse(VertexId a_in, VertexId b_in) {
@@ -804,6 +817,20 @@ class Merger {
     return it - cubes_.begin();
   }
 
+  // Record index of the cube at record's cube + offset, or −1; one step along +x is the next
+  // record when it has a surface (records are in scan order).
+  std::int64_t neighbour_cube(std::size_t record, const std::array<int, 3>& offset) const {
+    const BoundaryCube& c = cubes_[record];
+    if (offset == std::array<int, 3>{1, 0, 0}) {
+      if (record + 1 < cubes_.size()) {
+        const BoundaryCube& n = cubes_[record + 1];
+        if (n.x == c.x + 1 && n.y == c.y && n.z == c.z) return static_cast<std::int64_t>(record + 1);
+      }
+      return -1;
+    }
+    return find_cube(c.x + offset[0], c.y + offset[1], c.z + offset[2]);
+  }
+
   std::int64_t step(std::size_t record, int d, int times = 1) const {
     const BoundaryCube& c = cubes_[record];
     const auto& u = kMergeDirectionVector[d];
@@ -914,19 +941,26 @@ class Merger {
     for (std::size_t plane = 0; plane < kType3Planes.size(); ++plane) {
       const std::vector<Type3Block>& blocks = type3_blocks()[plane];
       const Type3Plane& axes = kType3Planes[plane];
+      // Cheap filters before the lattice look-ups: the first cube's index, then the first two.
       std::array<bool, 256> possible_first{};
-      for (const Type3Block& block : blocks) possible_first[block.key & 0xFFu] = true;
+      std::vector<bool> possible_pair(1u << 16);
+      for (const Type3Block& block : blocks) {
+        possible_first[block.key & 0xFFu] = true;
+        possible_pair[block.key & 0xFFFFu] = true;
+      }
+      const std::array<std::array<int, 3>, 3> offsets = {
+          axes.h, axes.v, {axes.h[0] + axes.v[0], axes.h[1] + axes.v[1], axes.h[2] + axes.v[2]}};
       for (std::size_t r = 0; r < cubes_.size(); ++r) {
         if (!possible_first[cubes_[r].index]) continue;
         std::array<std::size_t, 4> block{r, 0, 0, 0};
-        const std::array<std::array<int, 3>, 3> offsets = {
-            axes.h, axes.v, {axes.h[0] + axes.v[0], axes.h[1] + axes.v[1], axes.h[2] + axes.v[2]}};
         bool complete = true;
         for (int k = 0; k < 3 && complete; ++k) {
-          const std::int64_t c = find_cube(cubes_[r].x + offsets[k][0], cubes_[r].y + offsets[k][1],
-                                           cubes_[r].z + offsets[k][2]);
+          const std::int64_t c = neighbour_cube(r, offsets[k]);
           complete = c >= 0;
           block[k + 1] = static_cast<std::size_t>(c);
+          if (complete && k == 0) {
+            complete = possible_pair[cubes_[r].index | cubes_[block[1]].index << 8];
+          }
         }
         if (!complete) continue;
         const std::uint32_t key = type3_key(cubes_[block[0]].index, cubes_[block[1]].index,
