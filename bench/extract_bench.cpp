@@ -3,6 +3,7 @@
 //   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012]
 //                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
+//   --spacing resample: accept a series with uneven slice steps as convert's --resample-spacing
 //
 // Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,
 // vertices, the peak resident memory added during extraction, and the validity of the surface
@@ -59,7 +60,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
                "       [--algorithms mc,classic,tm,tm012] [--threads 1,2] [--repeat 5]\n"
-               "       [--write-nrrd FILE]\n");
+               "       [--write-nrrd FILE] [--spacing refuse|resample]\n");
   return 2;
 }
 
@@ -67,7 +68,7 @@ int usage() {
 
 int main(int argc, char** argv) {
   std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
-              thread_list = "1";
+              thread_list = "1", spacing = "refuse";
   int repeat = 5;
   for (int a = 1; a + 1 < argc; a += 2) {
     const std::string key = argv[a], value = argv[a + 1];
@@ -78,14 +79,18 @@ int main(int argc, char** argv) {
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else if (key == "--write-nrrd") nrrd_out = value;
     else if (key == "--threads") thread_list = value;
+    else if (key == "--spacing") spacing = value;
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
+  if (spacing != "refuse" && spacing != "resample") return usage();
 
   core::Volume volume;
   std::string name;
   if (!series_dir.empty()) {
-    const auto scan = dicom::scan_folder(series_dir, {});
+    dicom::ScanOptions scan_options;
+    if (spacing == "resample") scan_options.geometry.spacing = dicom::SpacingPolicy::resample;
+    const auto scan = dicom::scan_folder(series_dir, scan_options);
     if (!scan.default_series) {
       std::fprintf(stderr, "no usable series in %s\n", series_dir.c_str());
       return 1;
