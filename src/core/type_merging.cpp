@@ -572,28 +572,10 @@ class Merger {
     }
     if (edge_ab != 2 || opposite.size != 2) return reject(stats_.rejected_link);
 
-    Fan fan_b;
-    gather_fan(b, fan_b);
-    if (fan_b.overflow) return reject(stats_.rejected_fan_size);
-    std::array<std::array<VertexId, 3>, kMaxFan> corners_b;
-    for (int i = 0; i < fan_b.size; ++i) corners_b[i] = current(fan_b.triangles[i]);
-    // Nor does a boundary vertex absorb one: a piece's seam (extract_type_merged) must stay as
-    // the piece beside it has it, and what is beyond a boundary cannot be judged from here.
-    SmallSet<2 * kMaxFan> link_b;
-    if (!closed_link(b, fan_b, link_b)) return reject(stats_.rejected_boundary);
-    // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
-    // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
-    int common = 0;
-    for (int j = 0; j < link_a.size; ++j) {
-      const VertexId v = link_a.items[j];
-      if (v == b || !link_b.contains(v)) continue;
-      if (!opposite.contains(v)) return reject(stats_.rejected_link);
-      ++common;
-    }
-    if (common != 2) return reject(stats_.rejected_link);
-    if (link_a.size == 3 && link_b.size == 3) return reject(stats_.rejected_link);
-
     // Fold-over: every triangle of a that survives keeps its orientation within the limits.
+    // Tested before b's fan is gathered: it rejects most (abdomen bone: 63 k of 88 k
+    // rejections), and every test up to the distance test is free of side effects, so the
+    // order changes which counter a rejection goes to, never the outcome.
     const P3 pb = position(b);
     for (int i = 0; i < fan_a.size; ++i) {
       const auto& c = corners_a[i];
@@ -621,6 +603,27 @@ class Merger {
         return reject(stats_.rejected_gradient);
       }
     }
+
+    Fan fan_b;
+    gather_fan(b, fan_b);
+    if (fan_b.overflow) return reject(stats_.rejected_fan_size);
+    std::array<std::array<VertexId, 3>, kMaxFan> corners_b;
+    for (int i = 0; i < fan_b.size; ++i) corners_b[i] = current(fan_b.triangles[i]);
+    // Nor does a boundary vertex absorb one: a piece's seam (extract_type_merged) must stay as
+    // the piece beside it has it, and what is beyond a boundary cannot be judged from here.
+    SmallSet<2 * kMaxFan> link_b;
+    if (!closed_link(b, fan_b, link_b)) return reject(stats_.rejected_boundary);
+    // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
+    // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
+    int common = 0;
+    for (int j = 0; j < link_a.size; ++j) {
+      const VertexId v = link_a.items[j];
+      if (v == b || !link_b.contains(v)) continue;
+      if (!opposite.contains(v)) return reject(stats_.rejected_link);
+      ++common;
+    }
+    if (common != 2) return reject(stats_.rejected_link);
+    if (link_a.size == 3 && link_b.size == 3) return reject(stats_.rejected_link);
 
     // Distance (D7): the MC vertices absorbed by a and by b against the new fan of b (a's
     // fan mapped to b plus b's fan), and those absorbed by a's other neighbours, whose fans
