@@ -820,24 +820,27 @@ class Merger {
     return it - cubes_.begin();
   }
 
-  // Record index of the cube at record's cube + offset, or −1; one step along +x is the next
-  // record when it has a surface (records are in scan order).
+  // Record index of the cube at record's cube + offset, or −1. Along +x by t the record t
+  // places on holds it when the cubes between have a surface too (records are in scan order),
+  // which is the common case of a run; otherwise the row is searched.
   std::int64_t neighbour_cube(std::size_t record, const std::array<int, 3>& offset) const {
     const BoundaryCube& c = cubes_[record];
-    if (offset == std::array<int, 3>{1, 0, 0}) {
-      if (record + 1 < cubes_.size()) {
-        const BoundaryCube& n = cubes_[record + 1];
-        if (n.x == c.x + 1 && n.y == c.y && n.z == c.z) return static_cast<std::int64_t>(record + 1);
+    if (offset[0] > 0 && offset[1] == 0 && offset[2] == 0) {
+      const std::size_t ahead = record + static_cast<std::size_t>(offset[0]);
+      if (ahead < cubes_.size()) {
+        const BoundaryCube& n = cubes_[ahead];
+        if (n.x == c.x + offset[0] && n.y == c.y && n.z == c.z) {
+          return static_cast<std::int64_t>(ahead);
+        }
       }
-      return -1;
+      if (offset[0] == 1) return -1;  // the next cube of the row would be the next record
     }
     return find_cube(c.x + offset[0], c.y + offset[1], c.z + offset[2]);
   }
 
   std::int64_t step(std::size_t record, int d, int times = 1) const {
-    const BoundaryCube& c = cubes_[record];
     const auto& u = kMergeDirectionVector[d];
-    return find_cube(c.x + times * u[0], c.y + times * u[1], c.z + times * u[2]);
+    return neighbour_cube(record, {times * u[0], times * u[1], times * u[2]});
   }
 
   VertexId edge_vertex(std::size_t record, int edge) const {
