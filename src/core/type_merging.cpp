@@ -536,6 +536,23 @@ class Merger {
     return true;
   }
 
+  // A vertex's fan, its triangles' current corners (read once: the mesh does not change until
+  // a collapse is applied) and its link.
+  struct Star {
+    Fan fan;
+    std::array<std::array<VertexId, 3>, kMaxFan> corners;
+    SmallSet<2 * kMaxFan> link;
+  };
+
+  // The star of r; false (the rejection counted) when its fan is too large or not closed.
+  bool gather_star(VertexId r, Star& star) {
+    gather_fan(r, star.fan);
+    if (star.fan.overflow) return reject(stats_.rejected_fan_size);
+    for (int i = 0; i < star.fan.size; ++i) star.corners[i] = current(star.fan.triangles[i]);
+    if (!closed_link(r, star.fan, star.link)) return reject(stats_.rejected_boundary);
+    return true;
+  }
+
   bool try_collapse(VertexId a_in, VertexId b_in) {
     const VertexId a = find(a_in);
     const VertexId b = find(b_in);
@@ -547,17 +564,13 @@ class Merger {
       return reject(stats_.rejected_class_size);
     }
 
-    Fan fan_a;
-    gather_fan(a, fan_a);
-    if (fan_a.overflow) return reject(stats_.rejected_fan_size);
-    // Current corners of a's fan, found once: every test below reads them (the mesh does not
-    // change until the collapse is applied).
-    std::array<std::array<VertexId, 3>, kMaxFan> corners_a;
-    for (int i = 0; i < fan_a.size; ++i) corners_a[i] = current(fan_a.triangles[i]);
+    Star star_a;
+    if (!gather_star(a, star_a)) return false;
+    const Fan& fan_a = star_a.fan;
+    const auto& corners_a = star_a.corners;
+    const SmallSet<2 * kMaxFan>& link_a = star_a.link;
 
-    // Link of a, boundary test and the edge (a, b).
-    SmallSet<2 * kMaxFan> link_a;
-    if (!closed_link(a, fan_a, link_a)) return reject(stats_.rejected_boundary);
+    // The edge (a, b).
     SmallSet<4> opposite;
     int edge_ab = 0;
     for (int i = 0; i < fan_a.size; ++i) {
@@ -604,15 +617,13 @@ class Merger {
       }
     }
 
-    Fan fan_b;
-    gather_fan(b, fan_b);
-    if (fan_b.overflow) return reject(stats_.rejected_fan_size);
-    std::array<std::array<VertexId, 3>, kMaxFan> corners_b;
-    for (int i = 0; i < fan_b.size; ++i) corners_b[i] = current(fan_b.triangles[i]);
     // Nor does a boundary vertex absorb one: a piece's seam (extract_type_merged) must stay as
     // the piece beside it has it, and what is beyond a boundary cannot be judged from here.
-    SmallSet<2 * kMaxFan> link_b;
-    if (!closed_link(b, fan_b, link_b)) return reject(stats_.rejected_boundary);
+    Star star_b;
+    if (!gather_star(b, star_b)) return false;
+    const Fan& fan_b = star_b.fan;
+    const auto& corners_b = star_b.corners;
+    const SmallSet<2 * kMaxFan>& link_b = star_b.link;
     // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
     // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
     int common = 0;
