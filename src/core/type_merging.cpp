@@ -953,7 +953,8 @@ class Merger {
   // diagonal; the first that passes the checks of §4.5), with the sliver clean-up, in one
   // transaction. After the type 0–2 pass, as the spec asks ("optional and last"). Blocks are
   // found by their cubes' MC indices, so a block some type 0–2 merge went through is tried too
-  // (the checks judge the surface as it is now): on the abdomen CT that triples the blocks.
+  // (the checks judge the surface as it is now): on the abdomen's bone (slice blocks, centre
+  // vertices only) that removes 3.7 times the triangles that untouched blocks alone give.
   void merge_type3() {
     for (std::size_t plane = 0; plane < kType3Planes.size(); ++plane) {
       const std::vector<Type3Block>& blocks = type3_blocks()[plane];
@@ -993,9 +994,12 @@ class Merger {
 
   // Block cubes BL, BR, TL, TR of a block in plane `axes`; the corner cubes are BL and TR, or
   // BR and TL. Their cut edges other than the centre edge are the block's internal edges that
-  // carry a vertex next to the centre vertex (two per corner cube): the centre vertex goes to
-  // the first of them that passes the checks, then the spec's optional step, each other one
-  // that passes them joins it too (on a plane, the block's patches become one polygon).
+  // carry a vertex next to the centre vertex (two per corner cube); of those vertices, the ones
+  // no earlier collapse absorbed take part (a vertex that absorbed one may lie runs away): the
+  // centre vertex goes to the first of them that passes the checks, then, the spec's optional
+  // step, each other one that passes them joins it too (on a plane, the block's patches become
+  // one polygon). Taking absorbing vertices too would give 0.9 % fewer triangles on the
+  // abdomen's bone (57.0 % of MC instead of 57.9 %) by moving vertices outside the block.
   void merge_type3_block(const std::array<std::size_t, 4>& block, const Type3Plane& axes,
                          bool bold_bl_tr) {
     const std::array<int, 2> corners =
@@ -1010,7 +1014,8 @@ class Merger {
       for (int e = 0; e < kCubeEdgeCount; ++e) {
         if (e == own_centre || ((cut >> e) & 1u) == 0) continue;
         assert(inner_count < 4);  // a corner configuration cuts three edges
-        inner[static_cast<std::size_t>(inner_count++)] = edge_vertex(block[k], e);
+        const VertexId v = edge_vertex(block[k], e);
+        if (find(v) == v) inner[static_cast<std::size_t>(inner_count++)] = v;
       }
     }
     begin_transaction();
