@@ -77,8 +77,9 @@ struct MergeOptions {
   std::uint32_t max_class_vertices = 64;
   // D10: type-3 blocks (spec §3.4), after types 0–2. They reduce what types 0–2 cannot
   // (generic plane (1,2,3): 100 % → 44 % of MC) and cost some time; abdomen CT, 1 thread
-  // (`extract_bench --algorithms mc,tm012,tm`): bone 300 HU 68.4 % → 57.0 % of MC triangles,
-  // skin −500 HU 39.9 % → 30.1 %, Hausdorff still 0.5 voxel.
+  // (`extract_bench --algorithms mc,tm012,tm`): bone 300 HU 68.4 % → 57.9 % of MC
+  // triangles, skin −500 HU 39.9 % → 30.8 %, Hausdorff still 0.5 voxel; 387 → 479 ms and
+  // 1.55 → 1.79 s.
   bool type3 = true;
   // D4: hexagons merge along the paper's two lines with an x component; true adds the third.
   bool hexagon_all_lines = false;
@@ -90,7 +91,8 @@ struct MergeOptions {
   // extract_type_merged: pieces of this many cube layers (z) are extracted and merged alone,
   // their seams fixed (see Streaming above); 0 = one piece, the whole surface in the paper's
   // scan order. Seams cost some reduction and smaller pieces less memory and time; abdomen CT
-  // (134 slices), 1 thread, triangles against one piece and time (`extract_bench`):
+  // (134 slices), 1 thread, triangles against one piece and time (`extract_bench`, before
+  // type 3):
   // skin −500 HU: 16 → +10.8 %, 1.86 s; 32 → +5.8 %, 2.23 s; 64 → +3.0 %, 2.54 s; one piece
   // 3.13 s. Bone 300 HU: 16 → +2.1 %, 32 → +0.9 %, 64 → +0.5 %. (merge_types ignores it.)
   unsigned slab_layers = 32;
