@@ -1,9 +1,14 @@
-// run_parallel: the core's one threading primitive. std::thread (std::jthread) rather than TBB
-// or OpenMP because typemerge::core is std-only (STYLE.md: no third-party dependency in core).
+// run_parallel and make_in_order: the core's threading primitives. std::thread (std::jthread)
+// rather than TBB or OpenMP because typemerge::core is std-only (STYLE.md: no third-party
+// dependency in core).
 #pragma once
 
 #include <atomic>
+#include <condition_variable>
 #include <cstddef>
+#include <exception>
+#include <mutex>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -28,6 +33,59 @@ void run_parallel(std::size_t count, unsigned threads, const Job& job) {
   std::vector<std::jthread> pool;
   for (unsigned t = 1; t < threads && t < count; ++t) pool.emplace_back(worker, t);
   worker(0);
+}
+
+// Runs make(i) for every i in [0, count) on `threads` threads (the caller's included) and
+// hands each result to consume(i, result) in increasing i, as soon as the results before it
+// have been consumed (consume runs under a lock, on whichever thread completed the run). A
+// thread starts item i only when i <= consumed + threads, so at most threads + 1 results
+// exist at once; a slow item holds up the consuming, not the other threads, unlike making
+// the items in waves. The first exception stops the handing out and is rethrown here.
+template <typename Result, typename Make, typename Consume>
+void make_in_order(std::size_t count, unsigned threads, const Make& make, const Consume& consume) {
+  std::mutex mutex;
+  std::condition_variable changed;
+  std::vector<std::optional<Result>> ready(count);
+  std::size_t next = 0;
+  std::size_t consumed = 0;
+  std::exception_ptr error;
+  auto worker = [&] {
+    std::unique_lock lock(mutex);
+    while (true) {
+      changed.wait(lock, [&] { return error || next >= count || next <= consumed + threads; });
+      if (error || next >= count) return;
+      const std::size_t i = next++;
+      lock.unlock();
+      std::optional<Result> result;
+      std::exception_ptr failure;
+      try {
+        result.emplace(make(i));
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      lock.lock();
+      if (failure) {
+        if (!error) error = failure;
+      } else {
+        ready[i] = std::move(result);
+        try {
+          for (; consumed < count && ready[consumed]; ++consumed) {
+            consume(consumed, *ready[consumed]);
+            ready[consumed].reset();
+          }
+        } catch (...) {
+          if (!error) error = std::current_exception();
+        }
+      }
+      changed.notify_all();
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (unsigned t = 1; t < threads && t < count; ++t) pool.emplace_back(worker);
+    worker();
+  }
+  if (error) std::rethrow_exception(error);
 }
 
 }  // namespace typemerge::core::detail

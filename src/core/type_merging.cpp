@@ -1268,45 +1268,38 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   const std::int64_t count = layers > 0 ? (layers + height - 1) / height : 0;
   const unsigned threads = std::max(detail::resolve_threads(options.threads),
                                     detail::resolve_threads(extract.threads));
-  // Pieces are made `threads` at a time and appended in order, so at most that many merged
-  // pieces exist beside the output. The output is reserved ahead from the pieces seen so far
-  // (their average size × the pieces in all, plus a fifth): growing it by doubling would copy
-  // it, holding it twice, typically at its last and largest growth.
+  // Pieces are made on `threads` threads and appended in order as soon as their predecessors
+  // are (make_in_order), so at most threads + 1 merged pieces exist beside the output. The
+  // output is reserved ahead from the pieces appended so far (their average size × the pieces
+  // in all, plus a fifth): growing it by doubling would copy it, holding it twice, typically
+  // at its last and largest growth.
   std::vector<VertexId> seam;
-  std::vector<MergedPiece> pieces;
-  for (std::int64_t wave = 0; wave < count; wave += threads) {
-    const auto n = static_cast<std::size_t>(std::min<std::int64_t>(threads, count - wave));
-    pieces.assign(n, MergedPiece{});
-    detail::run_parallel(n, threads, [&](std::size_t i, unsigned) {
-      const std::int64_t k = wave + static_cast<std::int64_t>(i);
-      pieces[i] = merge_piece(volume, iso, extract, options, k * height,
-                              std::min(layers, (k + 1) * height));
-    });
-    std::size_t vertices = out.positions.size();
-    std::size_t triangles = out.triangles.size();
-    for (const MergedPiece& piece : pieces) {
-      vertices += piece.mesh.positions.size() - piece.shared;
-      triangles += piece.mesh.triangles.size();
-    }
-    if (vertices > out.positions.capacity() || triangles > out.triangles.capacity()) {
-      const double done = static_cast<double>(wave) + static_cast<double>(n);
-      const double scale = 1.2 * static_cast<double>(count) / done;
-      const auto ahead = [&](std::size_t size) {
-        return std::max(size, static_cast<std::size_t>(scale * static_cast<double>(size)));
-      };
-      out.positions.reserve(ahead(vertices));
-      out.normals.reserve(ahead(vertices));
-      out.triangles.reserve(ahead(triangles));
-    }
-    for (MergedPiece& piece : pieces) {
-      append_piece(out, piece, seam);
-      add_stats(total, piece.stats);
-      total.triangles_before += piece.stats.triangles_before;
-      total.vertices_before += piece.stats.vertices_before - piece.shared;
-      if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
-      piece = MergedPiece{};
-    }
-  }
+  detail::make_in_order<MergedPiece>(
+      static_cast<std::size_t>(count), threads,
+      [&](std::size_t i) {
+        const auto k = static_cast<std::int64_t>(i);
+        return merge_piece(volume, iso, extract, options, k * height,
+                           std::min(layers, (k + 1) * height));
+      },
+      [&](std::size_t i, MergedPiece& piece) {
+        const std::size_t vertices =
+            out.positions.size() + piece.mesh.positions.size() - piece.shared;
+        const std::size_t triangles = out.triangles.size() + piece.mesh.triangles.size();
+        if (vertices > out.positions.capacity() || triangles > out.triangles.capacity()) {
+          const double scale = 1.2 * static_cast<double>(count) / static_cast<double>(i + 1);
+          const auto ahead = [&](std::size_t size) {
+            return std::max(size, static_cast<std::size_t>(scale * static_cast<double>(size)));
+          };
+          out.positions.reserve(ahead(vertices));
+          out.normals.reserve(ahead(vertices));
+          out.triangles.reserve(ahead(triangles));
+        }
+        append_piece(out, piece, seam);
+        add_stats(total, piece.stats);
+        total.triangles_before += piece.stats.triangles_before;
+        total.vertices_before += piece.stats.vertices_before - piece.shared;
+        if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
+      });
   total.triangles_after = out.triangles.size();
   total.vertices_after = out.positions.size();
   if (stats != nullptr) *stats = total;
