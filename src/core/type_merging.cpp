@@ -194,7 +194,6 @@ struct Fan {
   bool overflow = false;
 };
 
-
 class Merger {
  public:
   Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
@@ -494,7 +493,7 @@ class Merger {
     for (VertexId m = next_member_[x]; m != x; m = next_member_[m]) {
       const TriangleId w = witness_[m];
       if (w == kNoTriangle || alive_[w] == 0 || witness_version_[m] != version_[w]) return false;
-      const auto c = current(w);
+      const auto& c = current(w);
       if (c[0] == a || c[1] == a || c[2] == a) return false;
       if (c[0] != x && c[1] != x && c[2] != x) return false;
     }
@@ -536,11 +535,9 @@ class Merger {
     return true;
   }
 
-  // A vertex's fan, its triangles' current corners (read once: the mesh does not change until
-  // a collapse is applied) and its link.
+  // A vertex's fan and its link.
   struct Star {
     Fan fan;
-    std::array<std::array<VertexId, 3>, kMaxFan> corners;
     SmallSet<2 * kMaxFan> link;
   };
 
@@ -548,7 +545,6 @@ class Merger {
   bool gather_star(VertexId r, Star& star) {
     gather_fan(r, star.fan);
     if (star.fan.overflow) return reject(stats_.rejected_fan_size);
-    for (int i = 0; i < star.fan.size; ++i) star.corners[i] = current(star.fan.triangles[i]);
     if (!closed_link(r, star.fan, star.link)) return reject(stats_.rejected_boundary);
     return true;
   }
@@ -567,14 +563,13 @@ class Merger {
     Star star_a;
     if (!gather_star(a, star_a)) return false;
     const Fan& fan_a = star_a.fan;
-    const auto& corners_a = star_a.corners;
     const SmallSet<2 * kMaxFan>& link_a = star_a.link;
 
     // The edge (a, b).
     SmallSet<4> opposite;
     int edge_ab = 0;
     for (int i = 0; i < fan_a.size; ++i) {
-      const auto& c = corners_a[i];
+      const auto& c = current(fan_a.triangles[i]);
       const int k = c[0] == a ? 0 : c[1] == a ? 1 : 2;
       const VertexId next = c[(k + 1) % 3];
       const VertexId prev = c[(k + 2) % 3];
@@ -591,7 +586,7 @@ class Merger {
     // order changes which counter a rejection goes to, never the outcome.
     const P3 pb = position(b);
     for (int i = 0; i < fan_a.size; ++i) {
-      const auto& c = corners_a[i];
+      const auto& c = current(fan_a.triangles[i]);
       if (c[0] == b || c[1] == b || c[2] == b) continue;
       P3 q[3];
       P3 ref{0, 0, 0};
@@ -622,7 +617,6 @@ class Merger {
     Star star_b;
     if (!gather_star(b, star_b)) return false;
     const Fan& fan_b = star_b.fan;
-    const auto& corners_b = star_b.corners;
     const SmallSet<2 * kMaxFan>& link_b = star_b.link;
     // Link condition: the common neighbours of a and b are exactly the two opposite vertices;
     // and not the last edge of a tetrahedron (both of valence 3), which would leave a pillow.
@@ -642,7 +636,7 @@ class Merger {
     Fan fan_ab;
     for (int i = 0; i < fan_a.size; ++i) fan_ab.triangles[fan_ab.size++] = fan_a.triangles[i];
     for (int i = 0; i < fan_b.size; ++i) {
-      const auto& c = corners_b[i];
+      const auto& c = current(fan_b.triangles[i]);
       if (c[0] == a || c[1] == a || c[2] == a) continue;
       if (fan_ab.size == kMaxFan) return reject(stats_.rejected_fan_size);
       fan_ab.triangles[fan_ab.size++] = fan_b.triangles[i];
@@ -671,7 +665,7 @@ class Merger {
     for (int i = 0; i < fan_a.size; ++i) {
       ++version_[fan_a.triangles[i]];  // a's triangles change shape
       // The corners as they are now that a is b.
-      std::array<VertexId, 3> c = corners_a[i];
+      std::array<VertexId, 3> c = current(fan_a.triangles[i]);
       for (VertexId& v : c) v = v == a ? b : v;
       corner_[fan_a.triangles[i]] = c;
       if (c[0] == c[1] || c[1] == c[2] || c[2] == c[0]) {
@@ -968,6 +962,7 @@ class Merger {
       }
       const std::array<std::array<int, 3>, 3> offsets = {
           axes.h, axes.v, {axes.h[0] + axes.v[0], axes.h[1] + axes.v[1], axes.h[2] + axes.v[2]}};
+      const std::array<int, 4> centre_edges = type3_centre_edges(axes);
       for (std::size_t r = 0; r < cubes_.size(); ++r) {
         if (!possible_first[cubes_[r].index]) continue;
         std::array<std::size_t, 4> block{r, 0, 0, 0};
@@ -987,32 +982,32 @@ class Merger {
             std::lower_bound(blocks.begin(), blocks.end(), key,
                              [](const Type3Block& b, std::uint32_t k) { return b.key < k; });
         if (it == blocks.end() || it->key != key) continue;
-        merge_type3_block(block, axes, it->bold_bl_tr);
+        merge_type3_block(block, centre_edges, it->bold_bl_tr);
       }
     }
   }
 
-  // Block cubes BL, BR, TL, TR of a block in plane `axes`; the corner cubes are BL and TR, or
-  // BR and TL. Their cut edges other than the centre edge are the block's internal edges that
-  // carry a vertex next to the centre vertex (two per corner cube); of those vertices, the ones
-  // no earlier collapse absorbed take part (a vertex that absorbed one may lie runs away): the
-  // centre vertex goes to the first of them that passes the checks, then, the spec's optional
-  // step, each other one that passes them joins it too (on a plane, the block's patches become
-  // one polygon). Taking absorbing vertices too would give 0.9 % fewer triangles on the
-  // abdomen's bone (57.0 % of MC instead of 57.9 %) by moving vertices outside the block.
-  void merge_type3_block(const std::array<std::size_t, 4>& block, const Type3Plane& axes,
-                         bool bold_bl_tr) {
+  // Block cubes BL, BR, TL, TR and the block's centre edge as an edge of each of them
+  // (type3_centre_edges); the corner cubes are BL and TR, or BR and TL. Their cut edges other
+  // than the centre edge are the block's internal edges that carry a vertex next to the
+  // centre vertex (two per corner cube); of those vertices, the ones no earlier collapse
+  // absorbed take part (a vertex that absorbed one may lie runs away): the centre vertex goes
+  // to the first of them that passes the checks, then, the spec's optional step, each other
+  // one that passes them joins it too (on a plane, the block's patches become one polygon).
+  // Taking absorbing vertices too would give 0.9 % fewer triangles on the abdomen's bone
+  // (57.0 % of MC instead of 57.9 %) by moving vertices outside the block.
+  void merge_type3_block(const std::array<std::size_t, 4>& block,
+                         const std::array<int, 4>& centre_edges, bool bold_bl_tr) {
     const std::array<int, 2> corners =
         bold_bl_tr ? std::array<int, 2>{0, 3} : std::array<int, 2>{1, 2};
-    const VertexId centre = edge_vertex(block[corners[0]], type3_centre_edge(axes, corners[0]));
+    const VertexId centre = edge_vertex(block[corners[0]], centre_edges[corners[0]]);
     if (find(centre) != centre) return;  // absorbed already: not this block's vertex any more
     std::array<VertexId, 4> inner{};
     int inner_count = 0;
     for (int k : corners) {
       const unsigned cut = kCubeCutEdges[cubes_[block[k]].index];
-      const int own_centre = type3_centre_edge(axes, k);
       for (int e = 0; e < kCubeEdgeCount; ++e) {
-        if (e == own_centre || ((cut >> e) & 1u) == 0) continue;
+        if (e == centre_edges[k] || ((cut >> e) & 1u) == 0) continue;
         assert(inner_count < 4);  // a corner configuration cuts three edges
         const VertexId v = edge_vertex(block[k], e);
         if (find(v) == v) inner[static_cast<std::size_t>(inner_count++)] = v;
@@ -1043,17 +1038,21 @@ class Merger {
     ++stats_.type3_groups;
   }
 
-  // The block's centre edge as an edge of its cube k (0 = BL, 1 = BR, 2 = TL, 3 = TR): it
-  // starts at h + v − (the cube's offset in the block) and runs along w.
-  static int type3_centre_edge(const Type3Plane& axes, int k) {
-    std::array<int, 3> from{};
-    for (int i = 0; i < 3; ++i) {
-      from[i] =
-          axes.h[i] + axes.v[i] - ((k & 1) != 0 ? axes.h[i] : 0) - ((k & 2) != 0 ? axes.v[i] : 0);
+  // A block's centre edge as an edge of each of its cubes k (0 = BL, 1 = BR, 2 = TL, 3 = TR):
+  // it starts at h + v − (the cube's offset in the block) and runs along w.
+  static std::array<int, 4> type3_centre_edges(const Type3Plane& axes) {
+    std::array<int, 4> edges{};
+    for (int k = 0; k < 4; ++k) {
+      std::array<int, 3> from{};
+      for (int i = 0; i < 3; ++i) {
+        from[i] =
+            axes.h[i] + axes.v[i] - ((k & 1) != 0 ? axes.h[i] : 0) - ((k & 2) != 0 ? axes.v[i] : 0);
+      }
+      edges[static_cast<std::size_t>(k)] = detail::edge_between(
+          detail::vertex_at(from[0], from[1], from[2]),
+          detail::vertex_at(from[0] + axes.w[0], from[1] + axes.w[1], from[2] + axes.w[2]));
     }
-    return detail::edge_between(
-        detail::vertex_at(from[0], from[1], from[2]),
-        detail::vertex_at(from[0] + axes.w[0], from[1] + axes.w[1], from[2] + axes.w[2]));
+    return edges;
   }
 
   // ---- Sliver clean-up (D6) -----------------------------------------------------------------
