@@ -960,8 +960,7 @@ class Merger {
         possible_first[block.key & 0xFFu] = true;
         possible_pair[block.key & 0xFFFFu] = true;
       }
-      const std::array<std::array<int, 3>, 3> offsets = {
-          axes.h, axes.v, {axes.h[0] + axes.v[0], axes.h[1] + axes.v[1], axes.h[2] + axes.v[2]}};
+      const std::array<std::array<int, 3>, 3> offsets = {axes.h, axes.v, axes.diagonal()};
       const std::array<int, 4> centre_edges = type3_centre_edges(axes);
       for (std::size_t r = 0; r < cubes_.size(); ++r) {
         if (!possible_first[cubes_[r].index]) continue;
@@ -1043,10 +1042,9 @@ class Merger {
   static std::array<int, 4> type3_centre_edges(const Type3Plane& axes) {
     std::array<int, 4> edges{};
     for (int k = 0; k < 4; ++k) {
-      std::array<int, 3> from{};
+      std::array<int, 3> from = axes.diagonal();
       for (int i = 0; i < 3; ++i) {
-        from[i] =
-            axes.h[i] + axes.v[i] - ((k & 1) != 0 ? axes.h[i] : 0) - ((k & 2) != 0 ? axes.v[i] : 0);
+        from[i] -= ((k & 1) != 0 ? axes.h[i] : 0) + ((k & 2) != 0 ? axes.v[i] : 0);
       }
       edges[static_cast<std::size_t>(k)] = detail::edge_between(
           detail::vertex_at(from[0], from[1], from[2]),

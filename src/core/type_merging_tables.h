@@ -258,11 +258,12 @@ constexpr const TypeEntry& type_of(unsigned cube_index) {
 
 // ---- Type 3 (spec §3.4, decision D10) ----------------------------------------------------------
 //
-// A type-3 group is a 2×2 block of cubes in one slice (BL = (x, y), BR = (x+1, y), TL = (x,
-// y+1), TR = (x+1, y+1), one z) that a single plane creates and whose cubes on one diagonal
-// are corner configurations (one vertex cut off). Every such block has a surface vertex on the
-// lattice z-edge at its centre (the cut-off corners are that edge's ends), and the four patches
-// around it lie on one plane, so that vertex can go. The paper lists four groups up to its
+// A type-3 group is a 2×2 block of cubes in one lattice plane (the paper's: a slice, BL =
+// (x, y), BR = (x+1, y), TL = (x, y+1), TR = (x+1, y+1), one z; here also xz and yz) that a
+// single plane creates and whose cubes on one diagonal are corner configurations (one vertex
+// cut off). Every such block has a surface vertex on the lattice edge at its centre (across
+// the block's plane; the cut-off corners are that edge's ends), and the four patches around
+// it lie on one plane, so that vertex can go. The paper lists four groups up to its
 // bold positions (spec §3.4's G1–G4); the blocks here are every one a plane creates, found by
 // the enumeration the type table uses: they include G1–G4 (tests/core/type_merging_tables_test
 // checks it) and their mirror images, which the paper seems to have left out (spec §3.4).
@@ -284,6 +285,8 @@ struct Type3Plane {
   std::array<int, 3> h;
   std::array<int, 3> v;
   std::array<int, 3> w;
+  // h + v: the offset of TR, and where the centre edge starts.
+  constexpr std::array<int, 3> diagonal() const { return {h[0] + v[0], h[1] + v[1], h[2] + v[2]}; }
 };
 // The slice (xy: right = R, up = T, as in the paper), then xz and yz (spec §3.4 lists them
 // too; the paper's slice-wise processing suggests it used only the first).
@@ -319,8 +322,7 @@ inline std::vector<Type3Block> enumerate_type3_blocks(const Type3Plane& plane, i
   std::vector<Type3Block> blocks;
   const int k = max_component;
   const std::array<int, 3> zero{0, 0, 0};
-  std::array<int, 3> hv{};
-  for (int i = 0; i < 3; ++i) hv[i] = plane.h[i] + plane.v[i];
+  const std::array<int, 3> hv = plane.diagonal();
   for (int nx = -k; nx <= k; ++nx) {
     for (int ny = -k; ny <= k; ++ny) {
       for (int nz = -k; nz <= k; ++nz) {
