@@ -3,6 +3,7 @@
 //   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012]
 //                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
+//   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
 //   --spacing resample: accept a series with uneven slice steps as convert's --resample-spacing
 //
 // Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,
@@ -60,7 +61,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
                "       [--algorithms mc,classic,tm,tm012] [--threads 1,2] [--repeat 5]\n"
-               "       [--write-nrrd FILE] [--spacing refuse|resample]\n");
+               "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
   return 2;
 }
 
@@ -70,6 +71,7 @@ int main(int argc, char** argv) {
   std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
               thread_list = "1", spacing = "refuse";
   int repeat = 5;
+  unsigned slab_layers = core::MergeOptions{}.slab_layers;
   for (int a = 1; a + 1 < argc; a += 2) {
     const std::string key = argv[a], value = argv[a + 1];
     if (key == "--series") series_dir = value;
@@ -80,6 +82,7 @@ int main(int argc, char** argv) {
     else if (key == "--write-nrrd") nrrd_out = value;
     else if (key == "--threads") thread_list = value;
     else if (key == "--spacing") spacing = value;
+    else if (key == "--slab-layers") slab_layers = static_cast<unsigned>(std::stoul(value));
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
@@ -126,6 +129,7 @@ int main(int argc, char** argv) {
         else if (!merged) return usage();
         core::MergeOptions merge;
         merge.type3 = algorithm == "tm";
+        merge.slab_layers = slab_layers;
         std::vector<double> times;
         core::TriangleMesh mesh;
         core::MergeStats merge_stats;
