@@ -1151,7 +1151,7 @@ class Merger {
   // The mesh and lattice state of the merge.
   // Per vertex and per triangle, what a collapse reads together sits together: the merge is
   // bound by the latency of first touches (one cache line per vertex and per triangle instead
-  // of one per array: abdomen, 1 thread, merging XX % faster).
+  // of one per array: abdomen, 1 thread, tm 2–4 % faster, same-run A/B).
   std::vector<VertexState> vertex_;
   std::vector<TriangleState> triangle_;
   std::vector<TriangleId> incident_;  // CSR vertex → incident triangles (VertexState::offset)

@@ -29,10 +29,10 @@
 // Memory of merge_types (the whole-mesh approach of §4.5, "polygonize, merge, compact"):
 // peak ≈ the MC mesh (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube
 // (lattice records from the extractor) + 32 bytes per vertex (union-find parent, class ring,
-// fan ring, class size, CSR offset and live end, distance witness and its version) + 30
-// bytes per triangle (CSR incidence, current corners, alive flag, shape version) + 1 byte per
+// fan ring, class size, CSR offset and live end, distance witness and its version) + 28
+// bytes per triangle (CSR incidence, current corners, shape version and alive bit) + 1 byte per
 // triangle (fan slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4 bytes per
-// cube row (y, z) + the compacted output — about 82 bytes per MC triangle (abdomen bone: 843,594
+// cube row (y, z) + the compacted output — about 80 bytes per MC triangle (abdomen bone: 843,594
 // triangles, 422,065 vertices, 411,058 cubes). No
 // per-vertex heap allocation, no hash map: everything is a flat array indexed by vertex,
 // triangle or cube record.
@@ -43,7 +43,7 @@
 // output; its seams (the vertices of its first and last slice) lie on its boundary, so no
 // merge moves them or moves a vertex onto them, and the pieces join exactly where
 // extract_isosurface's slabs join. With one thread one piece exists at a time, so
-// peak ≈ the output mesh + 82 bytes per MC triangle of one piece + 31 bytes × the padded
+// peak ≈ the output mesh + 80 bytes per MC triangle of one piece + 31 bytes × the padded
 // slice area (the extractor's slice buffers) — bounded by a few dozen slices whatever the
 // number of slices (abdomen CT, slices repeated up to N = 1072: README); with T threads up to
 // T + 1 pieces exist (T being made, one waiting for its predecessor to be appended). The
