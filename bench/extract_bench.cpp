@@ -1,6 +1,6 @@
 // extract_bench: surface extraction speed and quality on a real series or a synthetic volume.
 //
-//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012]
+//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012,classify]
 //                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
@@ -11,6 +11,9 @@
 // (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
 // mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
 // mm (tm012: type merging without type 3); for mc the ambiguity statistics of the paper's Table 4.
+// `classify` is no extractor: one thread classifies every sample against the iso value and
+// counts the cut x-edges — the first pass of flying edges and of ours, which any extractor
+// must make, i.e. a floor for the time of any surface extraction (no triangles).
 // The same volume can be written as NRRD for bench/vtk_extract.py, so that VTK's filters run on
 // identical samples.
 #include <algorithm>
@@ -57,10 +60,24 @@ long current_memory_kib() {
 
 using typemerge::bench::split;
 
+// The `classify` floor: inside flags of every sample, then the cut x-edges counted (two plain
+// loops the compiler vectorises; rows are not told apart, which changes the count by a few
+// row ends and the time by nothing).
+std::size_t classify_and_count_cuts(const core::Volume& volume, float iso,
+                                    std::vector<std::uint8_t>& inside) {
+  const std::vector<float>& samples = volume.samples();
+  inside.resize(samples.size());
+  std::transform(samples.begin(), samples.end(), inside.begin(),
+                 [iso](float f) { return std::uint8_t{f >= iso}; });
+  std::size_t cuts = 0;
+  for (std::size_t i = 0; i + 1 < inside.size(); ++i) cuts += inside[i] != inside[i + 1];
+  return cuts;
+}
+
 int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
-               "       [--algorithms mc,classic,tm,tm012] [--threads 1,2] [--repeat 5]\n"
+               "       [--algorithms mc,classic,tm,tm012,classify] [--threads 1,2] [--repeat 5]\n"
                "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
   return 2;
 }
@@ -119,6 +136,22 @@ int main(int argc, char** argv) {
     const float iso = std::stof(iso_text);
     core::TriangleMesh reference;  // the mc surface of this iso, for tm's ratio and distances
     for (const std::string& algorithm : split(algorithms)) {
+      if (algorithm == "classify") {
+        std::vector<std::uint8_t> inside;
+        std::vector<double> times;
+        std::size_t cuts = 0;
+        for (int r = 0; r < repeat; ++r) {
+          const auto start = std::chrono::steady_clock::now();
+          cuts = classify_and_count_cuts(volume, iso, inside);
+          const auto end = std::chrono::steady_clock::now();
+          times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
+        }
+        std::sort(times.begin(), times.end());
+        const double median = times[times.size() / 2];
+        std::printf("%-8s %-8s %3s %10.1f %10.1f    (no surface: %zu cut x-edges)\n",
+                    iso_text.c_str(), algorithm.c_str(), "1", median, cells / median / 1e3, cuts);
+        continue;
+      }
       for (const std::string& thread_text : split(thread_list)) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
