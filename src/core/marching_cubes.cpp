@@ -34,6 +34,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -61,6 +62,46 @@ using Index = std::int64_t;
 using VertexId = std::uint32_t;
 
 constexpr float kPadding = -std::numeric_limits<float>::infinity();
+
+// Word-at-a-time scans, 8 bytes per step: inside a body most of a trimmed row is inside, where
+// no edge is cut and no cube is a boundary cube, and testing those bytes one by one was most
+// of the extraction time at skin thresholds (abdomen, −500 HU). The first byte found is the
+// lowest-addressed one (little-endian; other byte orders scan byte by byte), so vertices and
+// cubes are still visited in increasing x.
+constexpr bool kWordScan = std::endian::native == std::endian::little;
+
+std::uint64_t load_word(const std::uint8_t* p) {
+  std::uint64_t w;
+  std::memcpy(&w, p, sizeof w);
+  return w;
+}
+
+// First x in [x, end) with a[x] != b[x], or end.
+Index next_difference(const std::uint8_t* a, const std::uint8_t* b, Index x, Index end) {
+  if constexpr (kWordScan) {
+    for (; x + 8 <= end; x += 8) {
+      if (const std::uint64_t d = load_word(a + x) ^ load_word(b + x); d != 0) {
+        return x + std::countr_zero(d) / 8;
+      }
+    }
+  }
+  while (x < end && a[x] == b[x]) ++x;
+  return x;
+}
+
+// First x in [x, end) whose cube code is neither 0 (outside) nor 255 (inside), or end.
+Index next_boundary_code(const std::uint8_t* codes, Index x, Index end) {
+  if constexpr (kWordScan) {
+    for (; x + 8 <= end; x += 8) {
+      const std::uint64_t w = load_word(codes + x);
+      // Each byte's top bit spread over the byte: equal to the byte exactly when it is 0 or 255.
+      const std::uint64_t spread = ((w >> 7) & 0x0101010101010101u) * 0xFFu;
+      if (const std::uint64_t d = w ^ spread; d != 0) return x + std::countr_zero(d) / 8;
+    }
+  }
+  while (x < end && (codes[x] == 0 || codes[x] == 255)) ++x;
+  return x;
+}
 
 // One padded slice and the vertex ids of its in-plane edges. Entry x + width·y belongs to the
 // sample (x, y), its x-edge (x,y)–(x+1,y) and its y-edge (x,y)–(x,y+1). Ids are valid only on
@@ -253,18 +294,22 @@ class Extractor {
     const float* v = slice.values.data();
     for (Index y = 0; y < height_; ++y) {
       const auto row = static_cast<std::size_t>(y);
-      for (Index x = slice.first_cut[row]; x <= slice.last_cut[row]; ++x) {
+      const std::uint8_t* r = in + width_ * y;
+      const Index end = Index{slice.last_cut[row]} + 1;
+      for (Index x = next_difference(r, r + 1, slice.first_cut[row], end); x < end;
+           x = next_difference(r, r + 1, x + 1, end)) {
         const Index i = x + width_ * y;
-        if (in[i] != in[i + 1]) slice.x_vertex[i] = add_edge_vertex(x, y, pz, 0, v[i], v[i + 1]);
+        slice.x_vertex[i] = add_edge_vertex(x, y, pz, 0, v[i], v[i + 1]);
       }
     }
     for (Index y = 0; y + 1 < height_; ++y) {
       const XRange range = pair_range(slice, y, slice, y + 1);
-      for (Index x = range.first; x <= range.last; ++x) {
+      const std::uint8_t* r = in + width_ * y;
+      const Index end = range.last + 1;
+      for (Index x = next_difference(r, r + width_, range.first, end); x < end;
+           x = next_difference(r, r + width_, x + 1, end)) {
         const Index i = x + width_ * y;
-        if (in[i] != in[i + width_]) {
-          slice.y_vertex[i] = add_edge_vertex(x, y, pz, 1, v[i], v[i + width_]);
-        }
+        slice.y_vertex[i] = add_edge_vertex(x, y, pz, 1, v[i], v[i + width_]);
       }
     }
   }
@@ -273,11 +318,13 @@ class Extractor {
   void add_layer_vertices(Index pz, const Slice& lower, const Slice& upper) {
     for (Index y = 0; y < height_; ++y) {
       const XRange range = pair_range(lower, y, upper, y);
-      for (Index x = range.first; x <= range.last; ++x) {
+      const std::uint8_t* a = lower.inside.data() + width_ * y;
+      const std::uint8_t* b = upper.inside.data() + width_ * y;
+      const Index end = range.last + 1;
+      for (Index x = next_difference(a, b, range.first, end); x < end;
+           x = next_difference(a, b, x + 1, end)) {
         const Index i = x + width_ * y;
-        if (lower.inside[i] != upper.inside[i]) {
-          z_vertex_[i] = add_edge_vertex(x, y, pz, 2, lower.values[i], upper.values[i]);
-        }
+        z_vertex_[i] = add_edge_vertex(x, y, pz, 2, lower.values[i], upper.values[i]);
       }
     }
   }
@@ -305,10 +352,11 @@ class Extractor {
                                              l1[x] << 3 | u0[x] << 4 | u0[x + 1] << 5 |
                                              u1[x + 1] << 6 | u1[x] << 7);
       }
-      for (Index x = range.first; x <= range.last; ++x) {
+      const Index end = range.last + 1;
+      for (Index x = next_boundary_code(codes, range.first, end); x < end;
+           x = next_boundary_code(codes, x + 1, end)) {
         const Index i = x + width_ * y;
         const unsigned c = codes[x];
-        if (c == 0 || c == 255) continue;
         if (options_.cubes != nullptr) {
           cubes_.push_back({static_cast<std::int32_t>(x - pad_),
                                      static_cast<std::int32_t>(y - pad_),
