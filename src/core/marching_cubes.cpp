@@ -63,6 +63,15 @@ using VertexId = std::uint32_t;
 
 constexpr float kPadding = -std::numeric_limits<float>::infinity();
 
+// Ambiguous faces per cube code (a table: without -mpopcnt, std::popcount is a library call).
+constexpr std::array<std::uint8_t, 256> kAmbiguousFaceCount = [] {
+  std::array<std::uint8_t, 256> count{};
+  for (unsigned c = 0; c < 256; ++c) {
+    count[c] = static_cast<std::uint8_t>(std::popcount(kCubeAmbiguousFaces[c]));
+  }
+  return count;
+}();
+
 // Word-at-a-time scans, 8 bytes per step: inside a body most of a trimmed row is inside, where
 // no edge is cut and no cube is a boundary cube, and testing those bytes one by one was most
 // of the extraction time at skin thresholds (abdomen, −500 HU). The first byte found is the
@@ -87,6 +96,19 @@ Index next_difference(const std::uint8_t* a, const std::uint8_t* b, Index x, Ind
   }
   while (x < end && a[x] == b[x]) ++x;
   return x;
+}
+
+// Last x in [begin, end) with a[x] != b[x], or begin − 1.
+Index last_difference(const std::uint8_t* a, const std::uint8_t* b, Index begin, Index end) {
+  if constexpr (kWordScan) {
+    for (; end - 8 >= begin; end -= 8) {
+      if (const std::uint64_t d = load_word(a + end - 8) ^ load_word(b + end - 8); d != 0) {
+        return end - 8 + (63 - std::countl_zero(d)) / 8;
+      }
+    }
+  }
+  while (end > begin && a[end - 1] == b[end - 1]) --end;
+  return end - 1;
 }
 
 // First x in [x, end) whose cube code is neither 0 (outside) nor 255 (inside), or end.
@@ -245,12 +267,9 @@ class Extractor {
         slice.last_cut[row] = -1;
         continue;
       }
-      Index first = 0;
-      while (in[first] == in[first + 1]) ++first;
-      Index last = width_ - 2;
-      while (in[last] == in[last + 1]) --last;
-      slice.first_cut[row] = static_cast<std::int32_t>(first);
-      slice.last_cut[row] = static_cast<std::int32_t>(last);
+      // The row has a cut x-edge: both scans find one.
+      slice.first_cut[row] = static_cast<std::int32_t>(next_difference(in, in + 1, 0, width_ - 1));
+      slice.last_cut[row] = static_cast<std::int32_t>(last_difference(in, in + 1, 0, width_ - 1));
     }
   }
 
@@ -377,7 +396,7 @@ class Extractor {
     if (decided != 0) entry += decide_faces(c, decided, i, lower, upper);
     if (options_.stats != nullptr) {
       ++stats_.boundary_cubes;
-      ++stats_.cubes_with_ambiguous_faces[std::popcount(ambiguous)];
+      ++stats_.cubes_with_ambiguous_faces[kAmbiguousFaceCount[c]];
       if (ambiguous != 0) {
         stats_.joined_faces += std::popcount(decide_faces(c, ambiguous, i, lower, upper));
       }
