@@ -94,10 +94,10 @@ struct MergeOptions {
   // extract_type_merged: pieces of this many cube layers (z) are extracted and merged alone,
   // their seams fixed (see Streaming above); 0 = one piece, the whole surface in the paper's
   // scan order. Seams cost some reduction and smaller pieces less memory and time; abdomen CT
-  // (134 slices), 1 thread, triangles against one piece and time (`extract_bench`, before
-  // type 3):
-  // skin −500 HU: 16 → +10.8 %, 1.86 s; 32 → +5.8 %, 2.23 s; 64 → +3.0 %, 2.54 s; one piece
-  // 3.13 s. Bone 300 HU: 16 → +2.1 %, 32 → +0.9 %, 64 → +0.5 %. (merge_types ignores it.)
+  // (134 slices), 1 thread, tm/mc triangles and time (`extract_bench --algorithms mc,tm
+  // --slab-layers L`, one run): bone 300 HU: 16 → 58.9 %, 438 ms; 32 → 57.9 %, 471 ms;
+  // 64 → 57.6 %, 546 ms; one piece 57.1 %, 509 ms. −500 HU: 16 → 32.7 %, 1.48 s; 32 →
+  // 30.8 %, 1.77 s; 64 → 29.6 %, 2.15 s; one piece 28.4 %, 2.41 s. (merge_types ignores it.)
   unsigned slab_layers = 32;
   // extract_type_merged: pieces made at once; 0 = hardware concurrency. (merge_types is
   // serial.)
