@@ -81,8 +81,8 @@ struct MergeOptions {
   // D10: type-3 blocks (spec §3.4), after types 0–2. They reduce what types 0–2 cannot
   // (generic plane (1,2,3): 100 % → 44 % of MC) and cost some time; abdomen CT, 1 thread
   // (`extract_bench --algorithms mc,tm012,tm`): bone 300 HU 68.4 % → 57.9 % of MC
-  // triangles, skin −500 HU 39.9 % → 30.8 %, Hausdorff still 0.5 voxel; 373 → 499 ms and
-  // 1.59 → 1.88 s.
+  // triangles, skin −500 HU 39.9 % → 30.8 %, Hausdorff still 0.5 voxel; 372 → 468 ms and
+  // 1.49 → 1.79 s.
   bool type3 = true;
   // D4: hexagons merge along the paper's two lines with an x component; true adds the third.
   bool hexagon_all_lines = false;
