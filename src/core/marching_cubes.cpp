@@ -36,6 +36,8 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <new>
+#include <stdexcept>
 #include <utility>
 #include <vector>
 
@@ -289,8 +291,14 @@ class Extractor {
       vertices += static_cast<double>(cuts) * static_cast<double>(next - layer);
       layer = next;
     }
+    // A sample can overestimate (a dense sampled layer among sparse ones, by up to
+    // kSampleStride×): if the address space is refused, the outputs grow as before.
     const auto reserve = [](auto& v, double count) {
-      v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
+      try {
+        v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
+      } catch (const std::bad_alloc&) {
+      } catch (const std::length_error&) {
+      }
     };
     reserve(mesh_.positions, vertices);
     reserve(mesh_.normals, vertices);

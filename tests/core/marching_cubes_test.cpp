@@ -159,6 +159,28 @@ std::size_t cut_edge_count(const Volume& volume, float iso, bool close_borders) 
   return count;
 }
 
+// Number of cubes with corners on both sides of iso (padding included when closing borders).
+std::size_t boundary_cube_count(const Volume& volume, float iso, bool close_borders) {
+  const VolumeSize& n = volume.size();
+  auto inside = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    if (i < 0 || j < 0 || k < 0 || i >= n.nx || j >= n.ny || k >= n.nz) return false;
+    return volume.at(i, j, k) >= iso;
+  };
+  const std::int64_t lo = close_borders ? -1 : 0;
+  const std::int64_t hi = close_borders ? 0 : -1;  // last cube origin: n + hi − 1
+  std::size_t count = 0;
+  for (std::int64_t k = lo; k < n.nz + hi; ++k) {
+    for (std::int64_t j = lo; j < n.ny + hi; ++j) {
+      for (std::int64_t i = lo; i < n.nx + hi; ++i) {
+        int corners = 0;
+        for (int c = 0; c < 8; ++c) corners += inside(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
+        if (corners != 0 && corners != 8) ++count;
+      }
+    }
+  }
+  return count;
+}
+
 // ---- Single cubes ---------------------------------------------------------------------------
 
 //   y                 v0 inside (value 1), the other seven 0, iso 0.5, borders open:
@@ -308,6 +330,42 @@ TEST(MarchingCubes, NoiseMatchesTheSlowReference) {
     expect_matches_reference(volume, 0.5f, kClosed);
     expect_matches_reference(volume, 0.5f, kOpen);
     expect_matches_reference(volume, 0.5f, kClassic);
+  }
+}
+
+// The extractor steps over 8 bytes at a time where rows hold no cut (word scans): long
+// inside and outside runs with isolated cuts at every offset within a word and rows of every
+// length mod 8 must give exactly the reference's triangles.
+TEST(MarchingCubes, LongRunsWithIsolatedCutsMatchTheSlowReference) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> uniform(0.0f, 1.0f);
+  for (std::int64_t nx = 30; nx <= 41; ++nx) {
+    SCOPED_TRACE(testing::Message() << "nx " << nx);
+    // A slab-like "body" (inside between random ends per row), specks of the other state
+    // inside and outside it, and values spread around the iso value near the surface.
+    Volume volume({nx, 7, 6}, IndexToPatient{});
+    for (std::int64_t k = 0; k < 6; ++k) {
+      for (std::int64_t j = 0; j < 7; ++j) {
+        const auto first = static_cast<std::int64_t>(uniform(rng) * 10.0f);
+        const auto last = nx - 1 - static_cast<std::int64_t>(uniform(rng) * 10.0f);
+        for (std::int64_t i = 0; i < nx; ++i) {
+          const bool body = k > 0 && k < 5 && j > 0 && j < 6 && i >= first && i <= last;
+          const bool speck = uniform(rng) < 0.04f;
+          const bool inside = body != speck;
+          volume.at(i, j, k) = inside ? 0.5f + 0.5f * uniform(rng) : 0.49f * uniform(rng);
+        }
+      }
+    }
+    expect_matches_reference(volume, 0.5f, kClosed);
+    expect_matches_reference(volume, 0.5f, kOpen);
+    expect_matches_reference(volume, 0.5f, kClassic);
+    for (const bool close : {true, false}) {
+      AmbiguityStats stats;
+      ExtractOptions options{.close_borders = close};
+      options.stats = &stats;
+      extract_isosurface(volume, 0.5f, options);
+      EXPECT_EQ(stats.boundary_cubes, boundary_cube_count(volume, 0.5f, close)) << close;
+    }
   }
 }
 
