@@ -136,13 +136,20 @@ void expect_matches_reference(const Volume& volume, float iso, const ExtractOpti
                                      options.mode == ExtractOptions::Mode::consistent));
 }
 
+// Whether sample (i, j, k) is inside; samples beyond the volume (the padding) are outside.
+bool inside_or_padding(const Volume& volume, float iso, std::int64_t i, std::int64_t j,
+                       std::int64_t k) {
+  const VolumeSize& n = volume.size();
+  if (i < 0 || j < 0 || k < 0 || i >= n.nx || j >= n.ny || k >= n.nz) return false;
+  return volume.at(i, j, k) >= iso;
+}
+
 // Number of lattice edges with a sign change, padding included when closing borders: with
 // vertex sharing this is exactly the number of edge vertices.
 std::size_t cut_edge_count(const Volume& volume, float iso, bool close_borders) {
   const VolumeSize& n = volume.size();
   auto inside = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
-    if (i < 0 || j < 0 || k < 0 || i >= n.nx || j >= n.ny || k >= n.nz) return false;
-    return volume.at(i, j, k) >= iso;
+    return inside_or_padding(volume, iso, i, j, k);
   };
   const std::int64_t lo = close_borders ? -1 : 0;
   const std::int64_t pad = close_borders ? 1 : 0;
@@ -162,18 +169,16 @@ std::size_t cut_edge_count(const Volume& volume, float iso, bool close_borders) 
 // Number of cubes with corners on both sides of iso (padding included when closing borders).
 std::size_t boundary_cube_count(const Volume& volume, float iso, bool close_borders) {
   const VolumeSize& n = volume.size();
-  auto inside = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
-    if (i < 0 || j < 0 || k < 0 || i >= n.nx || j >= n.ny || k >= n.nz) return false;
-    return volume.at(i, j, k) >= iso;
-  };
-  const std::int64_t lo = close_borders ? -1 : 0;
-  const std::int64_t hi = close_borders ? 0 : -1;  // last cube origin: n + hi − 1
+  const std::int64_t first = close_borders ? -1 : 0;  // first cube origin
+  const std::int64_t end = close_borders ? 0 : -1;    // one past the last: n + end
   std::size_t count = 0;
-  for (std::int64_t k = lo; k < n.nz + hi; ++k) {
-    for (std::int64_t j = lo; j < n.ny + hi; ++j) {
-      for (std::int64_t i = lo; i < n.nx + hi; ++i) {
+  for (std::int64_t k = first; k < n.nz + end; ++k) {
+    for (std::int64_t j = first; j < n.ny + end; ++j) {
+      for (std::int64_t i = first; i < n.nx + end; ++i) {
         int corners = 0;
-        for (int c = 0; c < 8; ++c) corners += inside(i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
+        for (int c = 0; c < 8; ++c) {
+          corners += inside_or_padding(volume, iso, i + (c & 1), j + ((c >> 1) & 1), k + (c >> 2));
+        }
         if (corners != 0 && corners != 8) ++count;
       }
     }
