@@ -221,6 +221,28 @@ struct Link {
   int size = 0;
 };
 
+// Cheap filters before merge_type3's lattice look-ups, per plane of kType3Planes: which
+// indices a block's first cube can have, and which pairs its first two (built once, on first
+// use, from type3_blocks()).
+struct Type3Filter {
+  std::array<bool, 256> first{};
+  std::vector<bool> pair = std::vector<bool>(1u << 16);
+};
+
+const std::array<Type3Filter, 3>& type3_filters() {
+  static const std::array<Type3Filter, 3> filters = [] {
+    std::array<Type3Filter, 3> built;
+    for (std::size_t plane = 0; plane < built.size(); ++plane) {
+      for (const Type3Block& block : type3_blocks()[plane]) {
+        built[plane].first[block.key & 0xFFu] = true;
+        built[plane].pair[block.key & 0xFFFFu] = true;
+      }
+    }
+    return built;
+  }();
+  return filters;
+}
+
 class Merger {
  public:
   Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
@@ -993,13 +1015,8 @@ class Merger {
     for (std::size_t plane = 0; plane < kType3Planes.size(); ++plane) {
       const std::vector<Type3Block>& blocks = type3_blocks()[plane];
       const Type3Plane& axes = kType3Planes[plane];
-      // Cheap filters before the lattice look-ups: the first cube's index, then the first two.
-      std::array<bool, 256> possible_first{};
-      std::vector<bool> possible_pair(1u << 16);
-      for (const Type3Block& block : blocks) {
-        possible_first[block.key & 0xFFu] = true;
-        possible_pair[block.key & 0xFFFFu] = true;
-      }
+      const std::array<bool, 256>& possible_first = type3_filters()[plane].first;
+      const std::vector<bool>& possible_pair = type3_filters()[plane].pair;
       const std::array<std::array<int, 3>, 3> offsets = {axes.h, axes.v, axes.diagonal()};
       const std::array<int, 4> centre_edges = type3_centre_edges(axes);
       for (std::size_t r = 0; r < cubes_.size(); ++r) {
