@@ -74,6 +74,12 @@ std::size_t classify_and_count_cuts(const core::Volume& volume, float iso,
   return cuts;
 }
 
+// The median of the repeated runs' times (the upper one of an even count).
+double median_ms(std::vector<double> times) {
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
 int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
@@ -146,8 +152,7 @@ int main(int argc, char** argv) {
           const auto end = std::chrono::steady_clock::now();
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
         }
-        std::sort(times.begin(), times.end());
-        const double median = times[times.size() / 2];
+        const double median = median_ms(times);
         std::printf("%-8s %-8s %3s %10.1f %10.1f    (no surface: %zu cut x-edges)\n",
                     iso_text.c_str(), algorithm.c_str(), "1", median, cells / median / 1e3, cuts);
         continue;
@@ -180,8 +185,7 @@ int main(int argc, char** argv) {
           peak_added = std::max(peak_added, peak_memory_kib() - before);
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
         }
-        std::sort(times.begin(), times.end());
-        const double median = times[times.size() / 2];
+        const double median = median_ms(times);
         const core::MeshCheck check = core::check_mesh(mesh);
         std::printf("%-8s %-8s %3s %10.1f %10.1f %11zu %10zu %10.1f %9zu %9zu %9zu\n",
                     iso_text.c_str(), algorithm.c_str(), thread_text.c_str(), median,

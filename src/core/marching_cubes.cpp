@@ -127,6 +127,12 @@ Index next_boundary_code(const std::uint8_t* codes, Index x, Index end) {
   return x;
 }
 
+// Inside flags (1: value >= iso, the tie rule) of n samples: a plain loop the compiler
+// vectorises.
+void classify_samples(const float* values, std::size_t n, float iso, std::uint8_t* inside) {
+  std::transform(values, values + n, inside, [iso](float f) { return std::uint8_t{f >= iso}; });
+}
+
 // Positions i < n where a[i] != b[i] (inside flags, 0 or 1): a plain loop the compiler
 // vectorises.
 std::size_t count_differences(const std::uint8_t* a, const std::uint8_t* b, std::size_t n) {
@@ -265,9 +271,7 @@ class Extractor {
     auto classify = [&](Index pz, std::vector<std::uint8_t>& in) {
       const Index k = pz - pad_;
       if (k < 0 || k >= s.nz) return false;
-      const float* v = volume_.slice(k);
-      const float iso = iso_;
-      std::transform(v, v + n, in.begin(), [iso](float f) { return std::uint8_t{f >= iso}; });
+      classify_samples(volume_.slice(k), n, iso_, in.data());
       return true;
     };
     auto in_plane = [&](const std::vector<std::uint8_t>& in) {
@@ -324,12 +328,11 @@ class Extractor {
     } else {
       std::fill(slice.values.begin(), slice.values.end(), kPadding);
     }
-    const float iso = iso_;
     for (Index y = 0; y < height_; ++y) {
-      const float* v = slice.values.data() + y * width_;
       std::uint8_t* in = slice.inside.data() + y * width_;
       // Two simple loops the compiler vectorises (classify, then count).
-      std::transform(v, v + width_, in, [iso](float f) { return std::uint8_t{f >= iso}; });
+      classify_samples(slice.values.data() + y * width_, static_cast<std::size_t>(width_), iso_,
+                       in);
       unsigned count = 0;
       for (Index x = 0; x < width_; ++x) count += in[x];
       const auto row = static_cast<std::size_t>(y);

@@ -540,7 +540,10 @@ class Merger {
   bool witnesses_hold(VertexId x, VertexId a) {
     for (VertexId m = vertex_[x].next_member; m != x; m = vertex_[m].next_member) {
       const TriangleId w = vertex_[m].witness;
-      if (w == kNoTriangle || triangle_[w].alive == 0 || vertex_[m].witness_version != triangle_[w].version) return false;
+      if (w == kNoTriangle || triangle_[w].alive == 0 ||
+          vertex_[m].witness_version != triangle_[w].version) {
+        return false;
+      }
       const auto& c = current(w);
       if (c[0] == a || c[1] == a || c[2] == a) return false;
       if (c[0] != x && c[1] != x && c[2] != x) return false;
@@ -730,7 +733,7 @@ class Merger {
       }
     }
     assert(entry.killed_count == 2);
-    for (VertexId m : pending_witness_) vertex_[m].witness_version = triangle_[vertex_[m].witness].version;
+    for (VertexId m : pending_witness_) record_witness(m, false);  // now the current shape
     if (in_transaction_) {
       journal_.push_back(entry);
     } else {
