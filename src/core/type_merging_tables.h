@@ -308,9 +308,7 @@ constexpr unsigned block_cube_index(const std::array<int, 3>& n, int lo,
   unsigned c = 0;
   for (int v = 0; v < kCubeVertexCount; ++v) {
     const auto& o = kCubeVertexOffset[v];
-    const int value =
-        n[0] * (origin[0] + o[0]) + n[1] * (origin[1] + o[1]) + n[2] * (origin[2] + o[2]);
-    if (value > lo) c |= 1u << v;
+    if (dot(n, {origin[0] + o[0], origin[1] + o[1], origin[2] + o[2]}) > lo) c |= 1u << v;
   }
   return c;
 }
