@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <future>
+#include <optional>
 #include <system_error>
 #include <limits>
 #include <ostream>
@@ -19,6 +20,7 @@
 #include "app/memory_budget.h"
 #include "app/presets.h"
 #include "app/version.h"
+#include "core/self_intersections.h"
 #include "core/window_field.h"
 #include "dicom/series_loader.h"
 #include "io/atomic_file.h"
@@ -178,6 +180,9 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
       ->check(CLI::IsMember({"tm", "mc", "classic"}));
   command->add_flag("--open-borders", options.open_borders,
                     "Leave surfaces open where they meet the volume border (default: closed)");
+  command->add_flag("--check-intersections", options.check_intersections,
+                    "Count crossing triangle pairs (exact) in each output and in the report; "
+                    "a smoothing or reduction step that adds crossings is undone");
   command->add_option("--finish", options.finish,
                       "default: the preset's clean-up; none: the extractor's surface unchanged")
       ->check(CLI::IsMember({"default", "none"}));
@@ -347,6 +352,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   pipeline.close_borders = !options.open_borders;
   pipeline.threads = options.threads;
   pipeline.finish = options.finish_options;
+  pipeline.check_intersections = options.check_intersections;
   pipeline.finish.enabled = options.finish != "none";
   pipeline.finish.min_component_mm3 = options.min_component_mm3;
   if (options.fill_cavities) pipeline.finish.fill_cavities = true;
@@ -355,7 +361,8 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                           {"finish", options.finish},
                           {"smooth_iterations", pipeline.finish.smooth_iterations},
                           {"reduce_to", pipeline.finish.reduce_to_triangles},
-                          {"max_error_mm", pipeline.finish.max_error_mm}};
+                          {"max_error_mm", pipeline.finish.max_error_mm},
+                          {"check_intersections", options.check_intersections}};
 
   ordered_json surfaces = ordered_json::array();
   // Every refusal before any work; then the surfaces, which are independent, are made
@@ -387,10 +394,19 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     }
     const fs::path stl = stl_path(options, spec, specs.size());
     const auto write_start = Clock::now();
+    std::optional<std::size_t> crossings;  // with --check-intersections
     try {
       // The preview always shows the LPS surface, so its views are anatomical.
       if (options.preview) io::write_preview_png(result.mesh, fs::path(stl).replace_extension(".png"));
       to_output_space(result.mesh, options);
+      if (options.check_intersections) {
+        // On the floats as written (after --space / --center), which are what a slicer reads.
+        crossings = core::find_self_intersections(result.mesh).pairs.size();
+        if (*crossings > 0) {
+          result.warnings.push_back(std::to_string(*crossings) +
+                                    " pair(s) of crossing triangles in the output");
+        }
+      }
       const std::string space = options.space == "ras" ? "RAS" : "LPS";
       io::write_mesh(result.mesh, stl, io::mesh_format_for(stl, options.ascii_stl),
                      std::string("typemerge ") + kVersion + " SPACE=" + space +
@@ -423,14 +439,19 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                         {"area_mm2", final_check.area},
                         {"bounding_box_lps_mm", {box.min, box.max}},
                         {"validity", check_json(final_check)},
+                        {"self_intersecting_pairs",
+                         crossings ? ordered_json(*crossings) : ordered_json(nullptr)},
                         {"steps", step_list},
                         {"write_ms", write_ms},
                         {"warnings", result.warnings}});
-    char line[256];
-    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s, written to %s\n",
+    const std::string crossing_text =
+        !crossings ? "" : *crossings == 0 ? ", no crossing triangles"
+                                          : ", " + std::to_string(*crossings) + " CROSSING pair(s)";
+    char line[512];
+    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s%s, written to %s\n",
                   spec.label.c_str(), result.mesh.triangles.size(), final_check.volume / 1000.0,
                   final_check.closed_manifold() ? "closed manifold" : "NOT closed manifold",
-                  stl.string().c_str());
+                  crossing_text.c_str(), stl.string().c_str());
     log << line;
   }
   report["surfaces"] = surfaces;

@@ -40,6 +40,7 @@ struct ConvertOptions {
   std::string space = "lps";  // lps | ras
   bool center = false;
   bool show_descriptions = false;  // put the free-text SeriesDescription in the report
+  bool check_intersections = false;  // count crossing triangle pairs of each output (CGAL)
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);

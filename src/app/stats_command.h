@@ -1,4 +1,5 @@
-// `typemerge stats mesh.stl [--json]`: the numbers that say whether a mesh is printable.
+// `typemerge stats mesh.stl [--json] [--self-intersections]`: the numbers that say whether a
+// mesh is printable.
 #pragma once
 
 #include <iosfwd>
@@ -13,6 +14,7 @@ namespace typemerge::app {
 struct StatsOptions {
   std::string mesh;
   bool json = false;
+  bool self_intersections = false;  // also count crossing triangle pairs (exact, CGAL)
 };
 
 void add_stats_command(CLI::App& app, StatsOptions& options);

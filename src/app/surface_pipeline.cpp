@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "core/marching_cubes.h"
+#include "core/self_intersections.h"
 #include "core/type_merging.h"
 #include "core/window_field.h"
 #include "mesh/components.h"
@@ -55,6 +56,73 @@ StepOutput component_details(const mesh::ComponentReport& report) {
           report.validity.check};
 }
 
+// Whether a step keeps the triangles and only moves vertices (smoothing), so that it can be
+// undone vertex by vertex.
+enum class Moves { vertices_only, topology };
+
+// Runs a finishing step that moves vertices; with `check` on, counts crossing pairs before
+// (once, cached in `crossings`) and after it. When the step added crossings: a step that only
+// moved vertices is repaired by putting the vertices of every crossing triangle back where
+// they were, round after round (each round puts back at least one more vertex, and with all
+// of them back the surface is the one before the step, so it ends); a step that changed the
+// triangles is undone. A smoothed or reduced surface that slicers reject is worse than the
+// unsmoothed one.
+template <typename Step>
+void run_moving_step(SurfaceResult& result, const std::string& name, bool check, Moves moves,
+                     std::optional<std::size_t>& crossings, Step&& step) {
+  if (!check) {
+    run_step(result, name, std::forward<Step>(step));
+    return;
+  }
+  if (!crossings) crossings = core::find_self_intersections(result.mesh).pairs.size();
+  core::TriangleMesh before = result.mesh;
+  run_step(result, name, std::forward<Step>(step));
+  StepSummary& summary = result.steps.back();
+  auto found = core::find_self_intersections(result.mesh);
+  const std::size_t made = found.pairs.size();
+  summary.details.emplace_back("self_intersecting_pairs", std::to_string(made));
+  if (made <= *crossings) {
+    crossings = made;
+    return;
+  }
+  std::size_t restored = 0;
+  if (moves == Moves::vertices_only && result.mesh.triangles == before.triangles) {
+    std::vector<std::uint8_t> back(result.mesh.positions.size(), 0);
+    while (found.pairs.size() > *crossings) {
+      std::size_t newly = 0;
+      for (const auto& pair : found.pairs) {
+        for (std::uint32_t t : pair) {
+          for (std::uint32_t v : result.mesh.triangles[t]) {
+            if (back[v] != 0) continue;
+            back[v] = 1;
+            result.mesh.positions[v] = before.positions[v];
+            result.mesh.normals[v] = before.normals[v];
+            ++newly;
+          }
+        }
+      }
+      if (newly == 0) break;
+      restored += newly;
+      found = core::find_self_intersections(result.mesh);
+    }
+  }
+  if (found.pairs.size() <= *crossings && restored > 0) {
+    summary.details.emplace_back("vertices_put_back", std::to_string(restored));
+    summary.check = core::check_mesh(result.mesh);
+    result.warnings.push_back(name + " made " + std::to_string(made - *crossings) +
+                              " pair(s) of crossing triangles; " + std::to_string(restored) +
+                              " vertices put back where they were");
+    crossings = found.pairs.size();
+    return;
+  }
+  result.mesh = std::move(before);
+  summary.details.emplace_back("undone", "yes");
+  summary.triangles = result.mesh.triangles.size();
+  summary.check = core::check_mesh(result.mesh);
+  result.warnings.push_back(name + " undone: it made " + std::to_string(made - *crossings) +
+                            " pair(s) of crossing triangles");
+}
+
 }  // namespace
 
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
@@ -84,7 +152,10 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                  {"merged_cubes", std::to_string(stats.cubes_merged_by_type[0] +
                                                  stats.cubes_merged_by_type[1] +
                                                  stats.cubes_merged_by_type[2])},
-                 {"type3_blocks", std::to_string(stats.type3_groups)}};
+                 {"type3_blocks", std::to_string(stats.type3_groups)},
+                 // The crossing guard (core/type_merging.h): re-merges, vertices frozen.
+                 {"crossing_rounds", std::to_string(stats.crossing_rounds)},
+                 {"vertices_frozen", std::to_string(stats.vertices_frozen)}};
     } else {
       mesh = core::extract_isosurface(source, iso, extract);
     }
@@ -117,8 +188,11 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       return component_details(mesh::fill_cavities(mesh));
     });
   }
+  std::optional<std::size_t> crossings;  // of the surface as it stands, once counted
   if (finish.smooth_iterations > 0) {
-    run_step(result, "Taubin smoothing", [&](core::TriangleMesh& mesh) {
+    run_moving_step(result, "Taubin smoothing", options.check_intersections,
+                    Moves::vertices_only, crossings,
+                    [&](core::TriangleMesh& mesh) {
       mesh::SmoothingOptions smoothing;
       smoothing.iterations = finish.smooth_iterations;
       const auto report = mesh::smooth_mesh(mesh, smoothing);
@@ -128,7 +202,9 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     });
   }
   if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
-    run_step(result, "quadric decimation", [&](core::TriangleMesh& mesh) {
+    run_moving_step(result, "quadric decimation", options.check_intersections, Moves::topology,
+                    crossings,
+                    [&](core::TriangleMesh& mesh) {
       mesh::DecimationOptions decimation;
       decimation.target_triangles = finish.reduce_to_triangles;
       if (finish.max_error_mm > 0) decimation.max_error = finish.max_error_mm;

@@ -41,6 +41,9 @@ struct PipelineOptions {
   bool close_borders = true;
   unsigned threads = 0;  // extraction threads; 0 = all cores (the output does not depend on it)
   FinishOptions finish;
+  // Count crossing triangle pairs (core/self_intersections.h) after every finishing step that
+  // moves vertices (smoothing, decimation) and undo a step that adds any.
+  bool check_intersections = false;
 };
 
 struct StepSummary {

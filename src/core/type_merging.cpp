@@ -35,6 +35,7 @@
 
 #include "core/cube_tables.h"
 #include "core/parallel.h"
+#include "core/self_intersections.h"
 
 namespace typemerge::core {
 
@@ -245,9 +246,12 @@ const std::array<Type3Filter, 3>& type3_filters() {
 
 class Merger {
  public:
+  // `frozen` (empty, or one flag per vertex): vertices that neither move nor absorb another
+  // (the crossing guard's, see merge_and_compact).
   Merger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-         const MergeOptions& options, MergeStats& stats)
-      : mesh_(mesh), cubes_(cubes), options_(options), stats_(stats) {
+         const MergeOptions& options, MergeStats& stats,
+         std::span<const std::uint8_t> frozen = {})
+      : mesh_(mesh), cubes_(cubes), options_(options), stats_(stats), frozen_(frozen) {
     const double deg = std::numbers::pi / 180.0;
     cos_normal_change_ = std::cos(options.max_normal_change_deg * deg);
     cos_normal_gradient_ = std::cos(options.max_normal_to_gradient_deg * deg);
@@ -262,8 +266,10 @@ class Merger {
   }
 
   // Compacted output: surviving vertices in original order, live triangles in original order.
-  // `new_id` (optional) receives each input vertex's id in the output (kNoVertex: dropped).
-  TriangleMesh result(std::vector<VertexId>* id_map = nullptr) {
+  // `new_id` (optional) receives each input vertex's id in the output (kNoVertex: dropped);
+  // `changed` (optional) flags each output triangle that is not an MC triangle as it was.
+  TriangleMesh result(std::vector<VertexId>* id_map = nullptr,
+                      std::vector<std::uint8_t>* changed = nullptr) {
     TriangleMesh out;
     const std::size_t n = mesh_.positions.size();
     std::vector<VertexId> local_ids;
@@ -288,13 +294,18 @@ class Merger {
       out.positions.push_back(mesh_.positions[v]);
       out.normals.push_back(mesh_.normals[v]);
     }
+    if (changed != nullptr) changed->clear();
     for (TriangleId t = 0; t < triangle_.size(); ++t) {
       if (triangle_[t].alive == 0) continue;
       const auto c = current(t);
       out.triangles.push_back({new_id[c[0]], new_id[c[1]], new_id[c[2]]});
+      if (changed != nullptr) changed->push_back(c != mesh_.triangles[t] ? 1 : 0);
     }
     return out;
   }
+
+  // The class (root) an input vertex belongs to after merging.
+  VertexId class_of(VertexId v) { return find(v); }
 
   // ---- Mesh state ------------------------------------------------------------------------
 
@@ -607,6 +618,10 @@ class Merger {
     if (a == b) return true;
     ++stats_.collapses_tried;
     pending_witness_.clear();
+    // Frozen vertices are never merged, so each is its own root.
+    if (!frozen_.empty() && (frozen_[a] != 0 || frozen_[b] != 0)) {
+      return reject(stats_.rejected_frozen);
+    }
     if (options_.max_class_vertices != 0 &&
         vertex_[a].class_size + vertex_[b].class_size > options_.max_class_vertices) {
       return reject(stats_.rejected_class_size);
@@ -1170,6 +1185,7 @@ class Merger {
   std::span<const BoundaryCube> cubes_;
   const MergeOptions& options_;
   MergeStats& stats_;
+  std::span<const std::uint8_t> frozen_;
   double cos_normal_change_ = 0.0;
   double cos_normal_gradient_ = 0.0;
   double epsilon2_ = 0.0;
@@ -1217,7 +1233,9 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
       &MergeStats::rejected_normal,   &MergeStats::rejected_gradient,
       &MergeStats::rejected_distance, &MergeStats::rejected_class_size,
       &MergeStats::sliver_collapses,  &MergeStats::slivers_left,
-      &MergeStats::type3_groups};
+      &MergeStats::type3_groups,      &MergeStats::rejected_frozen,
+      &MergeStats::crossing_rounds,   &MergeStats::vertices_frozen,
+      &MergeStats::crossings_left};
   for (auto counter : counters) sum.*counter += part.*counter;
 }
 
@@ -1225,22 +1243,82 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
 
 namespace {
 
-// merge_types, also giving each input vertex's id in the output (id_map may be null).
+// Positions as the crossing test sees them: as to_patient will write them (the same
+// expression per vertex, so the same floats) when `geometry` is given, else as they are.
+TriangleMesh crossing_space(TriangleMesh mesh, const IndexToPatient* geometry) {
+  if (geometry != nullptr) {
+    for (auto& p : mesh.positions) {
+      const Vec3 q = geometry->apply(p[0], p[1], p[2]);
+      p = {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
+    }
+  }
+  mesh.normals.clear();
+  return mesh;
+}
+
+// merge_types, also giving each input vertex's id in the output (id_map may be null), with
+// the crossing guard (see "No crossings" in type_merging.h): merge, look for crossing pairs
+// among the triangles the merge changed, freeze every input vertex of the classes at their
+// corners, merge again from the unchanged input; until no pair is left or nothing new can be
+// frozen. `geometry`: where the output will be written (crossings are decided on those floats).
 void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
                        const MergeOptions& options, MergeStats* stats,
-                       std::vector<VertexId>* id_map) {
+                       std::vector<VertexId>* id_map, const IndexToPatient* geometry) {
   assert(options.run_cap >= 1 && options.epsilon_voxels >= 0.0);
   MergeStats local;
-  local.triangles_before = mesh.triangles.size();
-  local.vertices_before = mesh.positions.size();
-  Merger merger(mesh, cubes, options, local);
-  merger.build();
-  merger.merge_all();
-  if (options.type3) merger.merge_type3();
-  if (options.remove_slivers) merger.remove_slivers();
-  mesh = merger.result(id_map);
-  local.triangles_after = mesh.triangles.size();
-  local.vertices_after = mesh.positions.size();
+  std::vector<std::uint8_t> frozen;
+  std::vector<VertexId> new_id;
+  std::vector<std::uint8_t> changed;
+  TriangleMesh merged;
+  for (;;) {
+    MergeStats round;
+    round.triangles_before = mesh.triangles.size();
+    round.vertices_before = mesh.positions.size();
+    Merger merger(mesh, cubes, options, round, frozen);
+    merger.build();
+    merger.merge_all();
+    if (options.type3) merger.merge_type3();
+    if (options.remove_slivers) merger.remove_slivers();
+    merged = merger.result(&new_id, &changed);
+    round.triangles_after = merged.triangles.size();
+    round.vertices_after = merged.positions.size();
+    round.crossing_rounds = local.crossing_rounds;
+    round.vertices_frozen = local.vertices_frozen;
+    local = round;
+    if (!options.prevent_crossings) break;
+    const SelfIntersections crossings =
+        find_self_intersections(crossing_space(merged, geometry), 0, changed);
+    if (crossings.pairs.empty()) break;
+    // Output vertex → input vertex (compaction keeps the input order).
+    std::vector<VertexId> input_of(merged.positions.size());
+    for (VertexId v = 0; v < new_id.size(); ++v) {
+      if (new_id[v] != kNoVertex) input_of[new_id[v]] = v;
+    }
+    std::vector<std::uint8_t> root_hit(mesh.positions.size(), 0);
+    for (const auto& pair : crossings.pairs) {
+      for (std::uint32_t t : pair) {
+        for (VertexId v : merged.triangles[t]) root_hit[input_of[v]] = 1;
+      }
+    }
+    if (frozen.empty()) frozen.assign(mesh.positions.size(), 0);
+    std::size_t newly = 0;
+    for (VertexId v = 0; v < mesh.positions.size(); ++v) {
+      if (frozen[v] == 0 && root_hit[merger.class_of(v)] != 0) {
+        frozen[v] = 1;
+        ++newly;
+      }
+    }
+    if (newly == 0) {
+      // Only MC triangles left crossing (float rounding of the map to patient space): nothing
+      // a merge can undo.
+      local.crossings_left = crossings.pairs.size();
+      break;
+    }
+    local.vertices_frozen += newly;
+    ++local.crossing_rounds;
+  }
+  mesh = std::move(merged);
+  if (id_map != nullptr) *id_map = std::move(new_id);
   if (stats != nullptr) *stats = local;
 }
 
@@ -1260,7 +1338,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
   std::vector<VertexId> new_id;
-  merge_and_compact(piece.mesh, piece.cubes, options, &out.stats, &new_id);
+  merge_and_compact(piece.mesh, piece.cubes, options, &out.stats, &new_id, &volume.geometry());
   // Seam vertices lie on the piece's boundary, which merging never changes: all of them stay,
   // in order (compaction keeps the order), the shared ones first.
   for (std::size_t v = 0; v < out.shared; ++v) {
@@ -1304,7 +1382,7 @@ void append_piece(TriangleMesh& out, const MergedPiece& piece, std::vector<Verte
 
 void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
                  const MergeOptions& options, MergeStats* stats) {
-  merge_and_compact(mesh, cubes, options, stats, nullptr);
+  merge_and_compact(mesh, cubes, options, stats, nullptr, nullptr);
 }
 
 TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractOptions& extract,

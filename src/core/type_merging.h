@@ -26,6 +26,25 @@
 // classic mode's holes, a piece's seams) never move and never absorb another vertex, so
 // boundaries are kept exactly.
 //
+// No crossings (the crossing guard, MergeOptions::prevent_crossings): the local checks above
+// cannot see a second sheet of surface a voxel away (two cortices, cortex and marrow wall), so
+// a stretched fan can reach through it: 8 crossing pairs on the abdomen CT's bone. The
+// argument: marching cubes' triangles cannot cross (each lies in its own cube, and within a
+// cube the case table's triangles do not cross), and a vertex that is frozen (neither moves
+// nor absorbs another) keeps its MC triangles' corners. So after merging, the triangles that
+// are not MC triangles as they were are tested exactly against every triangle whose box they
+// meet (core/self_intersections.h; on the float positions the output will be written with,
+// patient mm for extract_type_merged, so the guarantee holds in millimetres whatever the
+// spacing); the input vertices of every class at a corner of a crossing pair are frozen, and
+// the piece is merged again from its MC surface. Each round freezes at least the two members
+// of some merged class (a crossing pair has a changed triangle, so a corner whose class has
+// more than one member, none of them frozen), so the rounds end; at the worst every vertex
+// near a crossing is frozen and the surface there is marching cubes'. The output then has no
+// crossing pair but those marching cubes' own floats would have (none in any test; counted in
+// MergeStats::crossings_left). Pieces cannot cross each other: a piece's triangles lie in its
+// layers and meet the next piece's only at seam vertices and seam edges, which merging never
+// moves. Cost: the exact test of the changed triangles each round (abdomen bone: README).
+//
 // Memory of merge_types (the whole-mesh approach of §4.5, "polygonize, merge, compact"):
 // peak ≈ the MC mesh (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube
 // (lattice records from the extractor) + 32 bytes per vertex (union-find parent, class ring,
@@ -102,6 +121,8 @@ struct MergeOptions {
   // extract_type_merged: pieces made at once; 0 = hardware concurrency. (merge_types is
   // serial.)
   unsigned threads = 1;
+  // The crossing guard (see "No crossings" above): no two output triangles cross.
+  bool prevent_crossings = true;
 };
 
 struct MergeStats {
@@ -125,6 +146,13 @@ struct MergeStats {
   std::size_t rejected_gradient = 0;  // a triangle would face away from the MC normals
   std::size_t rejected_distance = 0;  // an absorbed MC vertex would be farther than epsilon
   std::size_t rejected_class_size = 0;  // the class would exceed max_class_vertices
+  std::size_t rejected_frozen = 0;      // a vertex the crossing guard froze
+
+  // The crossing guard: merges repeated with more vertices frozen, vertices frozen, and
+  // crossing pairs left that no merge made (zero unless rounding to patient floats makes one).
+  std::size_t crossing_rounds = 0;
+  std::size_t vertices_frozen = 0;
+  std::size_t crossings_left = 0;
 
   std::size_t sliver_collapses = 0;
   std::size_t slivers_left = 0;  // slivers no checked collapse could remove

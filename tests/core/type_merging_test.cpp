@@ -12,10 +12,12 @@
 #include <cmath>
 #include <cstdio>
 #include <numbers>
+#include <random>
 #include <vector>
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
+#include "core/self_intersections.h"
 #include "test_volumes.h"
 
 namespace typemerge::core {
@@ -133,6 +135,9 @@ void expect_same_topology(const Extracted& e) {
   EXPECT_EQ(e.stats.triangles_before, e.mc.triangles.size());
   EXPECT_EQ(e.stats.triangles_after, e.tm.triangles.size());
   EXPECT_EQ(e.stats.slivers_left, 0u);
+  // The crossing guard: no two triangles cross (exact predicates), as in marching cubes.
+  EXPECT_TRUE(find_self_intersections(e.tm).pairs.empty());
+  EXPECT_TRUE(find_self_intersections(e.mc).pairs.empty());
 }
 
 // ---- Planes --------------------------------------------------------------------------------
@@ -477,6 +482,61 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
       }
     }
   }
+}
+
+// Thin noisy spherical shells (two sheets about a voxel apart, as cortex is) on a grid of
+// thick slices (0.7 × 0.7 × 3 mm), merged with loosened checks (larger ε, runs and normal
+// limits) so that stretched fans reach through the other sheet: without the guard they cross,
+// with it no pair is left, in patient millimetres as written, for any thread count, with
+// marching cubes' topology.
+TEST(TypeMerging, CrossingGuardRemovesTheCrossingsStretchedFansMake) {
+  MergeOptions loose;
+  loose.epsilon_voxels = 1.5;
+  loose.max_normal_change_deg = 89;
+  loose.max_normal_to_gradient_deg = 89;
+  loose.run_cap = 16;
+  IndexToPatient geometry;
+  geometry.axes = {{{0.7, 0, 0}, {0, 0.7, 0}, {0, 0, 3.0}}};
+  std::size_t unguarded = 0;
+  std::size_t rounds = 0;
+  for (double thickness : {0.8, 1.1}) {
+    for (unsigned seed = 1; seed <= 6; ++seed) {
+      SCOPED_TRACE(testing::Message() << "thickness " << thickness << " seed " << seed);
+      std::mt19937 random(seed);
+      std::uniform_real_distribution<double> wobble(-0.3, 0.3);
+      const double radius = 9 + seed * 0.37;
+      Volume volume = sample_volume(32, 32, 32, [&](double x, double y, double z) {
+        const double r = std::sqrt((x - 15.5) * (x - 15.5) + (y - 15.7) * (y - 15.7) +
+                                   (z - 15.3) * (z - 15.3));
+        return thickness / 2 - std::abs(r - radius) + wobble(random);
+      });
+      volume.set_geometry(geometry);
+      MergeOptions off = loose;
+      off.prevent_crossings = false;
+      TriangleMesh plain = extract_type_merged(volume, 0.0f, kClosed, off);
+      to_patient(plain, geometry);
+      unguarded += find_self_intersections(plain).pairs.size();
+
+      MergeStats stats;
+      Extracted guarded{extract_isosurface(volume, 0.0f, kClosed), {}, {}};
+      guarded.tm = extract_type_merged(volume, 0.0f, kClosed, loose, &stats);
+      guarded.stats = stats;
+      rounds += stats.crossing_rounds;
+      EXPECT_EQ(stats.crossings_left, 0u);
+      TriangleMesh written = guarded.tm;
+      to_patient(written, geometry);
+      EXPECT_TRUE(find_self_intersections(written).pairs.empty());
+      EXPECT_TRUE(check_mesh(guarded.tm).closed_manifold());
+      EXPECT_EQ(check_mesh(guarded.tm).euler_characteristic,
+                check_mesh(guarded.mc).euler_characteristic);
+      EXPECT_EQ(check_mesh(guarded.tm).components, check_mesh(guarded.mc).components);
+      MergeOptions two = loose;
+      two.threads = 2;
+      EXPECT_EQ(extract_type_merged(volume, 0.0f, kClosed, two).triangles, guarded.tm.triangles);
+    }
+  }
+  EXPECT_GT(unguarded, 10u) << "the loosened merge should have made crossings to remove";
+  EXPECT_GT(rounds, 0u);
 }
 
 // Pieces where the surface is open (borders left open, classic mode's holes): boundaries stay
