@@ -1,6 +1,7 @@
 // extract_bench: surface extraction speed and quality on a real series or a synthetic volume.
 //
-//   extract_bench --series DIR [--iso 300,-500] [--algorithms mc,classic,tm,tm012,classify]
+//   extract_bench --series DIR [--iso 300,-500]
+//                 [--algorithms mc,classic,tm,tm012,tm-unguarded,classify]
 //                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
@@ -10,7 +11,12 @@
 // vertices, the peak resident memory added during extraction, and the validity of the surface
 // (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
 // mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
-// mm (tm012: type merging without type 3); for mc the ambiguity statistics of the paper's Table 4.
+// mm (tm012: type merging without type 3; tm-unguarded: without the crossing guard, to show
+// its cost), vertex-sampled and sampled over both surfaces (every 0.25 voxel, in voxels; vertex samples
+// alone miss the insides of merged polygons); for mc the ambiguity statistics of the paper's
+// Table 4. For every surface: crossing triangle pairs in patient mm as convert writes them
+// (exact, core/self_intersections.h) and the shares of triangles with an angle above 170° and
+// below 1° (needles and slivers that slicers and FE tools dislike).
 // `classify` is no extractor: one thread classifies every sample against the iso value and
 // counts the cut x-edges — the first pass of flying edges and of ours, which any extractor
 // must make, i.e. a floor for the time of any surface extraction (no triangles).
@@ -22,6 +28,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,6 +36,7 @@
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
+#include "core/self_intersections.h"
 #include "core/type_merging.h"
 #include "dicom/series_loader.h"
 #include "io/nrrd_writer.h"
@@ -49,6 +57,40 @@ long peak_memory_kib() {
   }
   return -1;
 }
+// Shares (%) of triangles whose largest angle exceeds 170° and whose smallest is under 1°.
+struct AngleShares {
+  double above_170 = 0;
+  double below_1 = 0;
+};
+AngleShares angle_shares(const core::TriangleMesh& mesh) {
+  std::size_t wide = 0;
+  std::size_t thin = 0;
+  const double cos170 = std::cos(170.0 * std::numbers::pi / 180.0);
+  const double cos1 = std::cos(std::numbers::pi / 180.0);
+  for (const auto& t : mesh.triangles) {
+    double largest_cos = 1.0;  // cos of the largest angle (smallest cosine)
+    double smallest_cos = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = mesh.positions[t[k]];
+      const auto& q = mesh.positions[t[(k + 1) % 3]];
+      const auto& r = mesh.positions[t[(k + 2) % 3]];
+      const double u[3] = {double{q[0]} - p[0], double{q[1]} - p[1], double{q[2]} - p[2]};
+      const double v[3] = {double{r[0]} - p[0], double{r[1]} - p[1], double{r[2]} - p[2]};
+      const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+      const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+      const double c = uu > 0 && vv > 0
+                           ? (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / std::sqrt(uu * vv)
+                           : 1.0;
+      largest_cos = std::min(largest_cos, c);
+      smallest_cos = std::max(smallest_cos, c);
+    }
+    if (largest_cos < cos170) ++wide;
+    if (smallest_cos > cos1) ++thin;
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(1, mesh.triangles.size()));
+  return {100.0 * static_cast<double>(wide) / n, 100.0 * static_cast<double>(thin) / n};
+}
+
 long current_memory_kib() {
   std::ifstream status("/proc/self/status");
   std::string line;
@@ -161,12 +203,13 @@ int main(int argc, char** argv) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
         core::AmbiguityStats ambiguity;
-        const bool merged = algorithm == "tm" || algorithm == "tm012";
+        const bool merged = algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
         else if (algorithm == "mc") options.stats = &ambiguity;
         else if (!merged) return usage();
         core::MergeOptions merge;
-        merge.type3 = algorithm == "tm";
+        merge.type3 = algorithm != "tm012";
+        merge.prevent_crossings = algorithm != "tm-unguarded";
         merge.slab_layers = slab_layers;
         std::vector<double> times;
         core::TriangleMesh mesh;
@@ -193,6 +236,24 @@ int main(int argc, char** argv) {
                     double(peak_added) / 1024, check.boundary_edges,
                     check.non_manifold_edges + check.non_manifold_vertices,
                     check.degenerate_triangles);
+        if (thread_text == split(thread_list).front()) {
+          core::TriangleMesh written = mesh;
+          core::to_patient(written, volume.geometry());
+          const auto crossing_start = std::chrono::steady_clock::now();
+          const std::size_t crossings = core::find_self_intersections(written).pairs.size();
+          const double crossing_ms = std::chrono::duration<double, std::milli>(
+                                         std::chrono::steady_clock::now() - crossing_start)
+                                         .count();
+          const AngleShares angles = angle_shares(written);
+          std::printf("    crossing pairs %zu (counted in %.0f ms); angles > 170°: %.2f%%, "
+                      "< 1°: %.2f%%\n",
+                      crossings, crossing_ms, angles.above_170, angles.below_1);
+          if (merged) {
+            std::printf("    crossing guard: %zu re-merge(s), %zu vertices frozen, %zu pairs left\n",
+                        merge_stats.crossing_rounds, merge_stats.vertices_frozen,
+                        merge_stats.crossings_left);
+          }
+        }
         if (algorithm == "mc" && thread_text == split(thread_list).front()) {
           reference = mesh;
           std::printf("    ambiguity (Table 4): %zu surface cubes; 1/2/3/6-face: %zu/%zu/%zu/%zu; "
@@ -215,6 +276,7 @@ int main(int argc, char** argv) {
           core::to_patient(reference_mm, volume.geometry());
           core::to_patient(mesh_mm, volume.geometry());
           const auto mm = core::mesh_distance(reference_mm, mesh_mm);
+          const auto sampled = core::surface_distance(reference, mesh, 0.25);
           std::printf("    tm/mc triangles %.1f%%; Hausdorff %.3f voxel (%.3f mm), mean %.4f voxel "
                       "(%.4f mm); Euler %lld vs %lld, components %zu vs %zu\n",
                       100.0 * double(mesh.triangles.size()) / double(reference.triangles.size()),
@@ -222,6 +284,10 @@ int main(int argc, char** argv) {
                       static_cast<long long>(check.euler_characteristic),
                       static_cast<long long>(mc_check.euler_characteristic), check.components,
                       mc_check.components);
+          std::printf("    sampled over both surfaces (every 0.25 voxel): Hausdorff %.3f voxel, "
+                      "mean %.4f voxel\n",
+                      sampled.hausdorff(), sampled.mean());
+          std::fflush(stdout);
           const auto& s = merge_stats;
           std::printf(
               "    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), type-3 blocks %zu, "

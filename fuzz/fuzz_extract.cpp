@@ -7,7 +7,8 @@
 //    degenerate triangle; with open borders the same except boundary edges;
 //  * type merging, in pieces of 1 to 4 layers, keeps those guarantees and the Euler
 //    characteristic and number of components of the marching-cubes mesh it merges;
-//  * threads > 1 give the serial output exactly (extraction and type merging).
+//  * threads > 1 give the serial output exactly (extraction and type merging);
+//  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -17,6 +18,7 @@
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
+#include "core/self_intersections.h"
 #include "core/type_merging.h"
 #include "fuzz_input.h"
 
@@ -123,5 +125,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                         tm_check.components != mc_check.components)) {
     violated("type merging changed the topology");
   }
+  // No two triangles cross (exact predicates): marching cubes by construction, type merging
+  // by its crossing guard.
+  if (!find_self_intersections(mc).pairs.empty()) violated("marching cubes made crossing triangles");
+  if (!find_self_intersections(tm).pairs.empty()) violated("type merging made crossing triangles");
   return 0;
 }

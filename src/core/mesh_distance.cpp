@@ -1,6 +1,8 @@
 // Vertex-to-surface distances over a uniform grid of triangle buckets (see mesh_distance.h).
 #include "core/mesh_distance.h"
 
+#include <cassert>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -229,6 +231,42 @@ double SymmetricMeshDistance::mean() const {
 SymmetricMeshDistance mesh_distance(const TriangleMesh& a, const TriangleMesh& b,
                                     unsigned threads) {
   return {vertex_to_mesh_distance(a, b, threads), vertex_to_mesh_distance(b, a, threads)};
+}
+
+TriangleMesh surface_samples(const TriangleMesh& mesh, double spacing) {
+  assert(spacing > 0.0);
+  TriangleMesh points;
+  points.positions = mesh.positions;
+  for (const auto& t : mesh.triangles) {
+    const auto& p0 = mesh.positions[t[0]];
+    const auto& p1 = mesh.positions[t[1]];
+    const auto& p2 = mesh.positions[t[2]];
+    auto length = [](const std::array<float, 3>& u, const std::array<float, 3>& v) {
+      const double d[3] = {double{u[0]} - v[0], double{u[1]} - v[1], double{u[2]} - v[2]};
+      return std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    };
+    const double longest = std::max({length(p0, p1), length(p1, p2), length(p2, p0)});
+    const int k = std::max(1, static_cast<int>(std::ceil(longest / spacing)));
+    // Interior and edge points of the lattice (the corners are the mesh's vertices).
+    for (int i = 0; i <= k; ++i) {
+      for (int j = 0; i + j <= k; ++j) {
+        if ((i == 0 && j == 0) || (i == k) || (j == k)) continue;
+        const double u = double(i) / k;
+        const double v = double(j) / k;
+        const double w = 1.0 - u - v;
+        std::array<float, 3> q;
+        for (int c = 0; c < 3; ++c) q[c] = static_cast<float>(w * p0[c] + u * p1[c] + v * p2[c]);
+        points.positions.push_back(q);
+      }
+    }
+  }
+  return points;
+}
+
+SymmetricMeshDistance surface_distance(const TriangleMesh& a, const TriangleMesh& b,
+                                       double spacing, unsigned threads) {
+  return {vertex_to_mesh_distance(surface_samples(a, spacing), b, threads),
+          vertex_to_mesh_distance(surface_samples(b, spacing), a, threads)};
 }
 
 }  // namespace typemerge::core

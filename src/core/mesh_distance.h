@@ -45,4 +45,16 @@ struct SymmetricMeshDistance {
 SymmetricMeshDistance mesh_distance(const TriangleMesh& a, const TriangleMesh& b,
                                     unsigned threads = 0);
 
+// Points spread over the surface: each triangle's corners and a barycentric lattice inside it,
+// k + 1 points along each edge with k = ceil(longest edge / spacing), so no point of the
+// surface is farther than about `spacing` from a sample. As vertices of a mesh without
+// triangles, for vertex_to_mesh_distance. Every vertex of a merged surface is a vertex of the
+// surface it came from, so vertex samples alone miss the insides of merged polygons.
+TriangleMesh surface_samples(const TriangleMesh& mesh, double spacing);
+
+// mesh_distance over surface_samples of both meshes: the symmetric Hausdorff and mean
+// distances of the surfaces (to within `spacing`).
+SymmetricMeshDistance surface_distance(const TriangleMesh& a, const TriangleMesh& b,
+                                       double spacing, unsigned threads = 0);
+
 }  // namespace typemerge::core

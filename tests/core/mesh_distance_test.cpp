@@ -52,6 +52,26 @@ TEST(MeshDistance, ExactOnASquare) {
   EXPECT_DOUBLE_EQ(max_vertex_distance(square, square), 0.0);
 }
 
+// A bent quad cut along one diagonal or the other: the same four vertices, so vertex samples
+// see no difference; the surfaces differ by 0.5 in the middle, which surface samples find.
+TEST(MeshDistance, SurfaceSamplesSeeInsideTriangles) {
+  TriangleMesh a;
+  a.positions = {{0, 0, 0}, {2, 0, 0}, {2, 2, 1}, {0, 2, 0}};
+  a.triangles = {{0, 1, 2}, {0, 2, 3}};
+  TriangleMesh b = a;
+  b.triangles = {{0, 1, 3}, {1, 2, 3}};
+  EXPECT_EQ(mesh_distance(a, b).hausdorff(), 0.0);
+  const auto sampled = surface_distance(a, b, 0.05);
+  // The farthest points are the diagonals' midpoints: B's (1, 1, 0) lies 2 / sqrt(20) from A's
+  // plane z = y / 2 and projects inside A's triangle there; A's (1, 1, 0.5) lies
+  // 1 / sqrt(6) from B. So the Hausdorff distance is 1 / sqrt(5), found to within the spacing.
+  EXPECT_NEAR(sampled.hausdorff(), 1.0 / std::sqrt(5.0), 0.01);
+  EXPECT_GT(sampled.mean(), 0.0);
+  const TriangleMesh points = surface_samples(a, 0.5);
+  EXPECT_GT(points.positions.size(), 4u + 2u * 10u);  // interior points of both triangles
+  EXPECT_TRUE(points.triangles.empty());
+}
+
 TEST(MeshDistance, EmptyMeshes) {
   TriangleMesh empty;
   TriangleMesh square;
