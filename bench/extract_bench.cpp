@@ -12,9 +12,9 @@
 // (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
 // mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
 // mm (tm012: type merging without type 3; tm-unguarded: without the crossing guard, to show
-// its cost), vertex-sampled and sampled over both surfaces (every 0.25 voxel, in voxels; vertex samples
-// alone miss the insides of merged polygons); for mc the ambiguity statistics of the paper's
-// Table 4. For every surface: crossing triangle pairs in patient mm as convert writes them
+// its cost), vertex-sampled and sampled over both surfaces (every 0.25 voxel, in voxels;
+// vertex samples alone miss the insides of merged polygons); for mc the ambiguity statistics of
+// the paper's Table 4. For every surface: crossing triangle pairs in patient mm as convert writes them
 // (exact, core/self_intersections.h) and the shares of triangles with an angle above 170° and
 // below 1° (needles and slivers that slicers and FE tools dislike).
 // `classify` is no extractor: one thread classifies every sample against the iso value and
@@ -203,7 +203,8 @@ int main(int argc, char** argv) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
         core::AmbiguityStats ambiguity;
-        const bool merged = algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
+        const bool merged =
+            algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
         else if (algorithm == "mc") options.stats = &ambiguity;
         else if (!merged) return usage();
@@ -249,7 +250,8 @@ int main(int argc, char** argv) {
                       "< 1°: %.2f%%\n",
                       crossings, crossing_ms, angles.above_170, angles.below_1);
           if (merged) {
-            std::printf("    crossing guard: %zu re-merge(s), %zu vertices frozen, %zu pairs left\n",
+            std::printf("    crossing guard: %zu re-merge(s), %zu vertices frozen, %zu pairs "
+                        "left\n",
                         merge_stats.crossing_rounds, merge_stats.vertices_frozen,
                         merge_stats.crossings_left);
           }

@@ -15,11 +15,14 @@
 // Degenerate triangles (three collinear corners) take no part in the pairs; they are counted
 // apart (CGAL reports them as a pair of a face with itself).
 //
-// Cost: one axis-aligned box per triangle, a uniform grid of cells twice the mean box extent
-// (O(n) for surfaces of even triangle sizes, as the extractors make), or CGAL's
-// box_intersection_d when the sizes are too uneven for a grid; then the exact test per pair of
-// meeting boxes. The core links CGAL for this alone (header-only kernel and box intersection,
-// GMP behind the filters).
+// Cost: one axis-aligned box per triangle in a sparse uniform grid (cells twice the mean box
+// extent, grouped by a radix sort: O(n) for surfaces of even triangle sizes, as the extractors
+// make), or
+// CGAL's box_intersection_d when the sizes are too uneven for a grid; then the exact test per
+// pair of meeting boxes, most of them decided by a statically filtered orientation in double
+// before CGAL's predicates. About 1 µs a triangle on this machine (abdomen bone, 535 k
+// triangles: 0.6 s; CGAL's box_intersection_d with the same pair test: 1.3 s). The core links
+// CGAL for this alone (header-only kernel and box intersection, GMP behind the filters).
 #pragma once
 
 #include <array>
@@ -54,8 +57,7 @@ namespace detail {
 // find_self_intersections with the broad phase chosen: `library` = CGAL's box_intersection_d,
 // else the grid (which falls back to the library for uneven triangle sizes). For tests.
 SelfIntersections find_self_intersections_by(const TriangleMesh& mesh, std::size_t max_pairs,
-                                             std::span<const std::uint8_t> only_with,
-                                             bool library);
+                                             std::span<const std::uint8_t> only_with, bool library);
 }  // namespace detail
 
 }  // namespace typemerge::core

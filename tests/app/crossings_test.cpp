@@ -69,9 +69,10 @@ TEST(Crossings, StatsCountsCrossingPairs) {
 // count, and a smoothing step that leaves none.
 TEST(Crossings, ConvertChecksItsOutputsAndKeepsSmoothingFromAddingAny) {
   const fs::path out = fresh_dir("crossings_convert");
-  const auto run = run_cli("convert " + std::string(TYPEMERGE_SOURCE_DIR) +
-                           "/sample_series --preset bone,skin --smooth 30 --check-intersections -o " +
-                           out.string() + " --report " + (out / "report.json").string());
+  const auto run =
+      run_cli("convert " + std::string(TYPEMERGE_SOURCE_DIR) +
+              "/sample_series --preset bone,skin --smooth 30 --check-intersections -o " +
+              out.string() + " --report " + (out / "report.json").string());
   ASSERT_EQ(run.exit_code, 0) << run.err;
   std::ifstream report_file(out / "report.json");
   const auto report = nlohmann::json::parse(report_file);
@@ -171,14 +172,14 @@ std::size_t check_real_series(const fs::path& data, const RealSeries& series) {
   return checked;
 }
 
-#define TYPEMERGE_REAL_SERIES_TEST(name, index, surfaces)                                    \
-  TEST(Crossings, name) {                                                                    \
-    TYPEMERGE_REQUIRE_REAL_DATA(data);                                                       \
-    const RealSeries& series = kRealSeries[index];                                           \
-    if (series.big && !optimised_build()) {                                                  \
-      GTEST_SKIP() << series.folder << " is checked in the optimised build only";            \
-    }                                                                                        \
-    EXPECT_EQ(check_real_series(data, series), std::size_t{surfaces});                      \
+#define TYPEMERGE_REAL_SERIES_TEST(name, index, surfaces)                         \
+  TEST(Crossings, name) {                                                         \
+    TYPEMERGE_REQUIRE_REAL_DATA(data);                                            \
+    const RealSeries& series = kRealSeries[index];                                \
+    if (series.big && !optimised_build()) {                                       \
+      GTEST_SKIP() << series.folder << " is checked in the optimised build only"; \
+    }                                                                             \
+    EXPECT_EQ(check_real_series(data, series), std::size_t{surfaces});            \
   }
 
 TYPEMERGE_REAL_SERIES_TEST(AbdomenSurfacesHaveNoCrossings, 0, 6)

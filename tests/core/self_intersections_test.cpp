@@ -32,8 +32,8 @@ TriangleMesh two_triangles(std::vector<P> positions, std::array<std::uint32_t, 3
 
 TEST(SelfIntersections, DisjointAndCrossingTriangles) {
   // A horizontal triangle and a vertical one through its middle.
-  auto crossing = two_triangles({{0, 0, 0}, {4, 0, 0}, {0, 4, 0}, {1, 1, -1}, {1, 1, 1}, {2, 0.5f, 0}},
-                                {0, 1, 2}, {3, 4, 5});
+  auto crossing = two_triangles(
+      {{0, 0, 0}, {4, 0, 0}, {0, 4, 0}, {1, 1, -1}, {1, 1, 1}, {2, 0.5f, 0}}, {0, 1, 2}, {3, 4, 5});
   EXPECT_TRUE(triangles_intersect(crossing, 0, 1));
   EXPECT_EQ(find_self_intersections(crossing).pairs.size(), 1u);
   // The same one lifted above the plane: no common point.
@@ -50,8 +50,8 @@ TEST(SelfIntersections, DisjointAndCrossingTriangles) {
 
 TEST(SelfIntersections, SharedVertexCountsOnlyWhenTheyMeetElsewhere) {
   // Two triangles fanned around vertex 0 at an angle: they meet only there.
-  auto fan = two_triangles({{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 2}, {2, 0, 1}},
-                           {0, 1, 2}, {0, 3, 4});
+  auto fan =
+      two_triangles({{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0, 0, 2}, {2, 0, 1}}, {0, 1, 2}, {0, 3, 4});
   EXPECT_FALSE(triangles_intersect(fan, 0, 1));
   // The second one's far edge dips through the first.
   auto pierced = two_triangles({{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {0.5f, 0.5f, -1}, {0.5f, 0.5f, 1}},
@@ -169,6 +169,26 @@ TEST(SelfIntersections, AgreesWithCgalOnMeshesWithCrossingsPutIn) {
     }
   }
   EXPECT_GT(total, 50u) << "the perturbation should have made crossings to compare";
+}
+
+// One triangle a hundred times the others' size (a decimated or hand-made mesh): too uneven for
+// the grid, which hands over to CGAL's box intersection; the pairs are still CGAL's own.
+TEST(SelfIntersections, UnevenTriangleSizesGiveTheSamePairs) {
+  TriangleMesh mesh = extract_isosurface(test::noise_volume(12, 12, 10, 8), 0.5f);
+  const auto base = static_cast<std::uint32_t>(mesh.positions.size());
+  for (const std::array<float, 3>& p :
+       {std::array<float, 3>{-300, -300, 4.3f}, std::array<float, 3>{300, -300, 4.6f},
+        std::array<float, 3>{0, 300, 4.4f}}) {
+    mesh.positions.push_back(p);
+    mesh.normals.push_back({0, 0, 0});
+  }
+  mesh.triangles.push_back({base, base + 1, base + 2});  // a sheet through the whole surface
+  const auto found = find_self_intersections(mesh);
+  const std::set<std::array<std::uint32_t, 2>> ours(found.pairs.begin(), found.pairs.end());
+  EXPECT_EQ(ours, cgal_pairs(mesh));
+  EXPECT_GT(ours.size(), 20u);
+  // Marching cubes' own triangles do not cross: every pair has the sheet in it.
+  for (const auto& pair : ours) EXPECT_EQ(pair[1], mesh.triangles.size() - 1);
 }
 
 }  // namespace
