@@ -298,7 +298,8 @@ bool boxes_meet(const TriangleBox& a, const TriangleBox& b) {
 // taken in the first cell both meet. For the surfaces the project makes (triangles a few
 // voxels at most) this is about twice as fast as CGAL's box_intersection_d (header); false,
 // having called nothing, when the sizes are too uneven for a grid (a triangle would need too
-// many cells, e.g. a decimated mesh) or the grid too large for 40-bit cell keys.
+// many cells, e.g. a decimated mesh) or the grid too large for 32-bit cell keys (kept to 32
+// bits: the type-merging guard holds these arrays beside a piece).
 template <typename Test>
 bool grid_pairs(const std::vector<TriangleBox>& boxes, const std::vector<std::uint32_t>& ids,
                 std::span<const std::uint8_t> only_with, Test&& test) {
@@ -325,7 +326,7 @@ bool grid_pairs(const std::vector<TriangleBox>& boxes, const std::vector<std::ui
         std::max<std::int64_t>(1, static_cast<std::int64_t>((hi[k] - lo[k]) * inverse[k]) + 1);
     cells *= static_cast<double>(dims[k]);
   }
-  if (cells > 0x1p40) return false;
+  if (cells > 0x1p32) return false;
   auto cell_of = [&](double x, int k) {
     const auto c = static_cast<std::int64_t>((x - lo[k]) * inverse[k]);
     return static_cast<std::int32_t>(std::clamp<std::int64_t>(c, 0, dims[k] - 1));
@@ -343,7 +344,7 @@ bool grid_pairs(const std::vector<TriangleBox>& boxes, const std::vector<std::ui
   }
   if (entries > 32 * n + 1024) return false;
   // Entries: cell key and triangle, in two arrays.
-  std::vector<std::uint64_t> keys;
+  std::vector<std::uint32_t> keys;
   std::vector<std::uint32_t> members;
   keys.reserve(entries);
   members.reserve(entries);
@@ -352,7 +353,7 @@ bool grid_pairs(const std::vector<TriangleBox>& boxes, const std::vector<std::ui
     for (std::int64_t z = r[2]; z <= r[5]; ++z) {
       for (std::int64_t y = r[1]; y <= r[4]; ++y) {
         for (std::int64_t x = r[0]; x <= r[3]; ++x) {
-          keys.push_back(static_cast<std::uint64_t>((z * dims[1] + y) * dims[0] + x));
+          keys.push_back(static_cast<std::uint32_t>((z * dims[1] + y) * dims[0] + x));
           members.push_back(static_cast<std::uint32_t>(i));
         }
       }
@@ -367,13 +368,13 @@ bool grid_pairs(const std::vector<TriangleBox>& boxes, const std::vector<std::ui
     const int passes = (bits + 10) / 11;
     const int digit = (bits + passes - 1) / passes;
     const std::uint64_t radix_mask = (std::uint64_t{1} << digit) - 1;
-    std::vector<std::uint64_t> keys_out(entries);
+    std::vector<std::uint32_t> keys_out(entries);
     std::vector<std::uint32_t> members_out(entries);
     std::vector<std::uint32_t> count(radix_mask + 2);
     for (int pass = 0; pass < passes; ++pass) {
       const int shift = pass * digit;
       std::fill(count.begin(), count.end(), 0u);
-      for (std::uint64_t key : keys) ++count[((key >> shift) & radix_mask) + 1];
+      for (std::uint32_t key : keys) ++count[((key >> shift) & radix_mask) + 1];
       for (std::size_t b = 1; b < count.size(); ++b) count[b] += count[b - 1];
       for (std::size_t e = 0; e < entries; ++e) {
         const std::uint32_t slot = count[(keys[e] >> shift) & radix_mask]++;

@@ -1274,12 +1274,21 @@ void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
     MergeStats round;
     round.triangles_before = mesh.triangles.size();
     round.vertices_before = mesh.positions.size();
-    Merger merger(mesh, cubes, options, round, frozen);
-    merger.build();
-    merger.merge_all();
-    if (options.type3) merger.merge_type3();
-    if (options.remove_slivers) merger.remove_slivers();
-    merged = merger.result(&new_id, &changed);
+    std::vector<VertexId> class_of;  // each input vertex's class, for the guard
+    {
+      // The merge state (about 80 bytes per MC triangle) goes before the guard's search, so
+      // the two are not held at once.
+      Merger merger(mesh, cubes, options, round, frozen);
+      merger.build();
+      merger.merge_all();
+      if (options.type3) merger.merge_type3();
+      if (options.remove_slivers) merger.remove_slivers();
+      merged = merger.result(&new_id, &changed);
+      if (options.prevent_crossings) {
+        class_of.resize(mesh.positions.size());
+        for (VertexId v = 0; v < class_of.size(); ++v) class_of[v] = merger.class_of(v);
+      }
+    }
     round.triangles_after = merged.triangles.size();
     round.vertices_after = merged.positions.size();
     round.crossing_rounds = local.crossing_rounds;
@@ -1303,7 +1312,7 @@ void merge_and_compact(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
     if (frozen.empty()) frozen.assign(mesh.positions.size(), 0);
     std::size_t newly = 0;
     for (VertexId v = 0; v < mesh.positions.size(); ++v) {
-      if (frozen[v] == 0 && root_hit[merger.class_of(v)] != 0) {
+      if (frozen[v] == 0 && root_hit[class_of[v]] != 0) {
         frozen[v] = 1;
         ++newly;
       }
