@@ -162,10 +162,6 @@ Point2 point2(const TriangleMesh& mesh, std::uint32_t v, int axis) {
 // Stops the box search once enough pairs are found.
 struct Enough {};
 
-}  // namespace
-
-namespace {
-
 // triangles_intersect with the two triangles' planes already set up.
 bool intersect(const TriangleMesh& mesh, std::uint32_t s, std::uint32_t t, const PlaneSide& plane_s,
                const PlaneSide& plane_t) {
