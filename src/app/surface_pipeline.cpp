@@ -56,19 +56,15 @@ StepOutput component_details(const mesh::ComponentReport& report) {
           report.validity.check};
 }
 
-// Whether a step keeps the triangles and only moves vertices (smoothing), so that it can be
-// undone vertex by vertex.
-enum class Moves { vertices_only, topology };
-
 // Runs a finishing step that moves vertices; with `check` on, counts crossing pairs before
-// (once, cached in `crossings`) and after it. When the step added crossings: a step that only
-// moved vertices is repaired by putting the vertices of every crossing triangle back where
+// (once, cached in `crossings`) and after it. When the step added crossings: a step that kept
+// the triangles and only moved vertices (smoothing) is repaired by putting the vertices of every crossing triangle back where
 // they were, round after round (each round puts back at least one more vertex, and with all
 // of them back the surface is the one before the step, so it ends); a step that changed the
 // triangles is undone. A smoothed or reduced surface that slicers reject is worse than the
 // unsmoothed one.
 template <typename Step>
-void run_moving_step(SurfaceResult& result, const std::string& name, bool check, Moves moves,
+void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
                      std::optional<std::size_t>& crossings, Step&& step) {
   if (!check) {
     run_step(result, name, std::forward<Step>(step));
@@ -86,7 +82,7 @@ void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
     return;
   }
   std::size_t restored = 0;
-  if (moves == Moves::vertices_only && result.mesh.triangles == before.triangles) {
+  if (result.mesh.triangles == before.triangles) {
     std::vector<std::uint8_t> back(result.mesh.positions.size(), 0);
     while (found.pairs.size() > *crossings) {
       std::size_t newly = 0;
@@ -190,8 +186,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   }
   std::optional<std::size_t> crossings;  // of the surface as it stands, once counted
   if (finish.smooth_iterations > 0) {
-    run_moving_step(result, "Taubin smoothing", options.check_intersections,
-                    Moves::vertices_only, crossings,
+    run_moving_step(result, "Taubin smoothing", options.check_intersections, crossings,
                     [&](core::TriangleMesh& mesh) {
       mesh::SmoothingOptions smoothing;
       smoothing.iterations = finish.smooth_iterations;
@@ -202,8 +197,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     });
   }
   if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
-    run_moving_step(result, "quadric decimation", options.check_intersections, Moves::topology,
-                    crossings,
+    run_moving_step(result, "quadric decimation", options.check_intersections, crossings,
                     [&](core::TriangleMesh& mesh) {
       mesh::DecimationOptions decimation;
       decimation.target_triangles = finish.reduce_to_triangles;

@@ -1243,16 +1243,12 @@ void add_stats(MergeStats& sum, const MergeStats& part) {
 
 namespace {
 
-// Positions as the crossing test sees them: as to_patient will write them (the same
-// expression per vertex, so the same floats) when `geometry` is given, else as they are.
+// Positions as the crossing test sees them: as to_patient will write them (to_patient itself,
+// so the same floats; its winding flip does not change what crosses) when `geometry` is given,
+// else as they are. Normals are not needed.
 TriangleMesh crossing_space(TriangleMesh mesh, const IndexToPatient* geometry) {
-  if (geometry != nullptr) {
-    for (auto& p : mesh.positions) {
-      const Vec3 q = geometry->apply(p[0], p[1], p[2]);
-      p = {static_cast<float>(q[0]), static_cast<float>(q[1]), static_cast<float>(q[2])};
-    }
-  }
   mesh.normals.clear();
+  if (geometry != nullptr) to_patient(mesh, *geometry);
   return mesh;
 }
 
