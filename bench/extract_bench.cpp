@@ -26,6 +26,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <numbers>
@@ -35,6 +36,7 @@
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
+#include "core/fused_merge.h"
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
@@ -203,8 +205,9 @@ int main(int argc, char** argv) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
         core::AmbiguityStats ambiguity;
+        const bool fused = algorithm == "fm";
         const bool merged =
-            algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
+            fused || algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
         else if (algorithm == "mc") options.stats = &ambiguity;
         else if (!merged) return usage();
@@ -215,6 +218,12 @@ int main(int argc, char** argv) {
         std::vector<double> times;
         core::TriangleMesh mesh;
         core::MergeStats merge_stats;
+        core::FusedMergeStats fused_stats;
+        core::FusedMergeOptions fused_options;
+        fused_options.slab_layers = slab_layers;
+        if (const char* b = std::getenv("FM_BLOCK")) fused_options.block_cubes = std::stoi(b);
+        if (const char* e = std::getenv("FM_EPS")) fused_options.epsilon_voxels = std::stod(e);
+        fused_options.threads = options.threads;
         long peak_added = 0;
         for (int r = 0; r < repeat; ++r) {
           mesh = {};
@@ -223,8 +232,10 @@ int main(int argc, char** argv) {
           const long before = current_memory_kib();
           reset_peak_memory();
           const auto start = std::chrono::steady_clock::now();
-          mesh = merged ? core::extract_type_merged(volume, iso, options, merge, &merge_stats)
-                        : core::extract_isosurface(volume, iso, options);
+          mesh = fused    ? core::extract_fused_merged(volume, iso, options, fused_options,
+                                                       &fused_stats)
+                 : merged ? core::extract_type_merged(volume, iso, options, merge, &merge_stats)
+                          : core::extract_isosurface(volume, iso, options);
           const auto end = std::chrono::steady_clock::now();
           peak_added = std::max(peak_added, peak_memory_kib() - before);
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
@@ -290,6 +301,18 @@ int main(int argc, char** argv) {
                       "mean %.4f voxel\n",
                       sampled.hausdorff(), sampled.mean());
           std::fflush(stdout);
+          if (fused) {
+            const auto& f = fused_stats;
+            std::printf("    blocks merged 2/4/8/16: %zu/%zu/%zu/%zu; rejected: configuration %zu "
+                        "topology %zu facing %zu flatness %zu outline %zu; "
+                        "demoted %zu; face vertices thinned %zu, restored %zu, passes %zu\n",
+                        f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2],
+                        f.blocks_merged[3], f.rejected_configuration, f.rejected_topology,
+                        f.rejected_facing, f.rejected_flatness, f.rejected_outline,
+                        f.blocks_demoted, f.face_vertices_removed,
+                        f.face_vertices_restored, f.triangulation_passes);
+            continue;
+          }
           const auto& s = merge_stats;
           std::printf(
               "    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), type-3 blocks %zu, "
