@@ -5,6 +5,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <span>
 #include <stdexcept>
@@ -26,6 +27,7 @@ FusedMergeStats& FusedMergeStats::operator+=(const FusedMergeStats& part) {
   rejected_facing += part.rejected_facing;
   rejected_flatness += part.rejected_flatness;
   rejected_outline += part.rejected_outline;
+  rejected_separation += part.rejected_separation;
   blocks_demoted += part.blocks_demoted;
   face_vertices_removed += part.face_vertices_removed;
   face_vertices_restored += part.face_vertices_restored;
@@ -63,19 +65,20 @@ double orient2d(const std::array<double, 2>& a, const std::array<double, 2>& b,
 // rounding of positions, so no written triangle has zero area.
 constexpr double kMinDoubleArea = 1e-6;
 
-// A block that passed every test, its loop in loops_[loop_first, loop_first + loop_size).
-struct MergedBlock {
+// A disk that passed every test (a block holds one or several), its loop in
+// loops_[loop_first, + loop_size) and its marching-cubes triangles in
+// disk_triangles_[triangles_first, + face_count).
+struct MergedDisk {
   Box box;
   P3 normal;
-  double band = 0.0;  // thickness of the slab its disk lies in
+  double band = 0.0;  // thickness of the slab it lies in
   std::uint32_t loop_first = 0;
   std::uint32_t loop_size = 0;
-  std::uint32_t cubes_first = 0;  // its cubes: block_cubes_[cubes_first, + cube_count)
-  std::uint32_t cube_count = 0;
-  std::uint32_t face_count = 0;   // its marching-cubes triangles
-  std::int32_t size = 0;          // its edge in cubes
+  std::uint32_t triangles_first = 0;
+  std::uint32_t face_count = 0;
+  std::int32_t size = 0;  // its block's edge in cubes
   // Its triangles: made_[made_first, + made_count) once triangulated; demoted = it could not
-  // be (or not with fewer triangles than marching cubes), so its cubes keep theirs.
+  // be (or not with at most as many triangles as marching cubes), so it keeps its own.
   std::uint32_t made_first = 0;
   std::uint32_t made_count = 0;
   bool demoted = false;
@@ -99,7 +102,6 @@ class PieceMerger {
         stats_(stats),
         stamp_(mesh.positions.size(), 0),
         local_(mesh.positions.size(), 0),
-        owner_(cubes.size(), kNone),
         state_(mesh.positions.size(), kOpen) {
     out_.reserve(mesh.triangles.size() / 2);
   }
@@ -108,13 +110,23 @@ class PieceMerger {
   // of the blocks (z, y, x), their halves in the same order.
   void run(const Box& lattice, std::int32_t block) {
     lattice_ = lattice;
-    index_rows();
     test_blocks(block);
     thin_shared_faces();
     triangulate_blocks();
   }
 
   std::vector<Triangle>& triangles() { return out_; }
+  void explain(VertexId v) const {
+    std::fprintf(stderr, "state %d count %d\n", state_[v], loop_disk_count_[v]);
+    for (std::uint32_t id = 0; id < disks_.size(); ++id) {
+      const MergedDisk& d = disks_[id];
+      for (std::uint32_t k = 0; k < d.loop_size; ++k) if (loops_[d.loop_first + k] == v) {
+        std::fprintf(stderr, " disk %u box %d %d %d - %d %d %d size %d demoted %d made %u faces %u loop %u\n", id, d.box.lo[0], d.box.lo[1], d.box.lo[2], d.box.hi[0], d.box.hi[1], d.box.hi[2], d.size, d.demoted, d.made_count, d.face_count, d.loop_size);
+      }
+    }
+    int in_out = 0; for (auto& t : out_) for (auto u : t) if (u == v) ++in_out;
+    std::fprintf(stderr, " in out %d\n", in_out);
+  }
 
  private:
   enum VertexState : std::uint8_t { kOpen = 0, kRemoved = 1, kKept = 2 };
@@ -124,35 +136,6 @@ class PieceMerger {
     const std::size_t end =
         cube + 1 < cubes_.size() ? cubes_[cube + 1].first_triangle : mesh_.triangles.size();
     return std::span(mesh_.triangles).subspan(first, end - first);
-  }
-
-  // Where each row (y, z) of cubes starts in cubes_, for finding a cube by its coordinates.
-  void index_rows() {
-    row_width_ = lattice_.hi[1] - lattice_.lo[1];
-    const std::size_t rows =
-        static_cast<std::size_t>(row_width_) * (lattice_.hi[2] - lattice_.lo[2]) + 1;
-    row_start_.assign(rows, 0);
-    for (const BoundaryCube& c : cubes_) ++row_start_[row_of(c.y, c.z) + 1];
-    for (std::size_t r = 1; r < rows; ++r) row_start_[r] += row_start_[r - 1];
-  }
-  std::size_t row_of(std::int32_t y, std::int32_t z) const {
-    return static_cast<std::size_t>(z - lattice_.lo[2]) * row_width_ +
-           static_cast<std::size_t>(y - lattice_.lo[1]);
-  }
-  // The merged block owning cube (x, y, z), or kNone (no such boundary cube in the piece, or
-  // it keeps its marching-cubes triangles).
-  std::uint32_t owner_of(std::int32_t x, std::int32_t y, std::int32_t z) const {
-    for (int a = 0; a < 3; ++a) {
-      const std::int32_t c = a == 0 ? x : a == 1 ? y : z;
-      if (c < lattice_.lo[a] || c >= lattice_.hi[a]) return kNone;
-    }
-    const std::size_t row = row_of(y, z);
-    const auto first = cubes_.begin() + row_start_[row];
-    const auto last = cubes_.begin() + row_start_[row + 1];
-    const auto it = std::lower_bound(first, last, x,
-                                     [](const BoundaryCube& c, std::int32_t v) { return c.x < v; });
-    if (it == last || it->x != x) return kNone;
-    return owner_[static_cast<std::size_t>(it - cubes_.begin())];
   }
 
   // ---- Step 1: test the blocks ----------------------------------------------------------------
@@ -206,11 +189,7 @@ class PieceMerger {
   bool test_block(std::span<std::uint32_t> cubes, const Box& box, std::int32_t size) {
     if (cubes.empty()) return true;
     if (size <= 2) {
-      if (try_merge(cubes, box, size)) return true;
-      for (std::uint32_t cube : cubes) {
-        for (const Triangle& t : triangles_of(cube)) out_.push_back(t);
-      }
-      return false;
+      return try_merge(cubes, box, size, /*emit_failures=*/true);
     }
     const std::int32_t half = size / 2;
     // Stable partition into the eight octants, in scan order (z, then y, then x).
@@ -228,9 +207,7 @@ class PieceMerger {
       std::copy_n(start.begin(), 8, fill.begin());
       for (std::uint32_t cube : scratch_order_) cubes[fill[octant(cube)]++] = cube;
     }
-    const std::size_t blocks_before = blocks_.size();
-    const std::size_t loops_before = loops_.size();
-    const std::size_t cubes_before = block_cubes_.size();
+    const std::size_t disks_before = disks_.size();
     bool all = true;
     for (int k = 0; k < 8; ++k) {
       Box child;
@@ -241,19 +218,41 @@ class PieceMerger {
       }
       all = test_block(cubes.subspan(start[k], start[k + 1] - start[k]), child, half) && all;
     }
-    if (!all || !try_merge(cubes, box, size)) return all;
-    // The block replaces its halves, which were the last ones recorded.
-    MergedBlock self = blocks_.back();
-    std::copy(loops_.begin() + self.loop_first, loops_.end(), loops_.begin() + loops_before);
-    loops_.resize(loops_before + self.loop_size);
-    std::copy(block_cubes_.begin() + self.cubes_first, block_cubes_.end(),
-              block_cubes_.begin() + cubes_before);
-    block_cubes_.resize(cubes_before + self.cube_count);
-    self.loop_first = static_cast<std::uint32_t>(loops_before);
-    self.cubes_first = static_cast<std::uint32_t>(cubes_before);
-    blocks_.resize(blocks_before);
-    blocks_.push_back(self);
-    for (std::uint32_t cube : cubes) owner_[cube] = static_cast<std::uint32_t>(blocks_before);
+    if (!all) return false;
+    // The halves' disks, the last ones recorded, are set aside while the block is tried.
+    const std::size_t loops_before = disks_.size() > disks_before
+                                         ? disks_[disks_before].loop_first
+                                         : loops_.size();
+    const std::size_t triangles_before = disks_.size() > disks_before
+                                             ? disks_[disks_before].triangles_first
+                                             : disk_triangles_.size();
+    std::vector<MergedDisk> halves(disks_.begin() + static_cast<std::ptrdiff_t>(disks_before),
+                                   disks_.end());
+    if (!try_merge(cubes, box, size, /*emit_failures=*/false)) {
+      // Keep the halves (try_merge recorded nothing).
+      return true;
+    }
+    // The block's disks replace the halves'.
+    const std::size_t own_disks = disks_.size() - disks_before - halves.size();
+    std::vector<MergedDisk> own(disks_.end() - static_cast<std::ptrdiff_t>(own_disks), disks_.end());
+    const std::size_t own_loops = loops_.size() - own[0].loop_first;
+    const std::size_t own_triangles = disk_triangles_.size() - own[0].triangles_first;
+    const std::ptrdiff_t loop_shift = static_cast<std::ptrdiff_t>(own[0].loop_first - loops_before);
+    const std::ptrdiff_t triangle_shift =
+        static_cast<std::ptrdiff_t>(own[0].triangles_first - triangles_before);
+    std::copy(loops_.end() - static_cast<std::ptrdiff_t>(own_loops), loops_.end(),
+              loops_.begin() + static_cast<std::ptrdiff_t>(loops_before));
+    loops_.resize(loops_before + own_loops);
+    std::copy(disk_triangles_.end() - static_cast<std::ptrdiff_t>(own_triangles),
+              disk_triangles_.end(),
+              disk_triangles_.begin() + static_cast<std::ptrdiff_t>(triangles_before));
+    disk_triangles_.resize(triangles_before + own_triangles);
+    disks_.resize(disks_before);
+    for (MergedDisk d : own) {
+      d.loop_first -= static_cast<std::uint32_t>(loop_shift);
+      d.triangles_first -= static_cast<std::uint32_t>(triangle_shift);
+      disks_.push_back(d);
+    }
     return true;
   }
 
@@ -267,14 +266,27 @@ class PieceMerger {
     return mask;
   }
 
-  bool try_merge(std::span<const std::uint32_t> cubes, const Box& box, std::int32_t size) {
-    std::size_t face_count = 0;
+  // The marching-cubes triangles of the block form components (through shared vertices);
+  // each that passes the tests is recorded as a merged disk, provided it is separated from
+  // every other component of the block by a plane (its slab's side: their hulls do not meet,
+  // so what replaces it cannot cross them). Returns whether every component passed; with
+  // emit_failures the others keep their marching-cubes triangles (emitted now), else nothing
+  // is recorded unless all pass.
+  bool try_merge(std::span<const std::uint32_t> cubes, const Box& box, std::int32_t size,
+                 bool emit_failures) {
+    auto fail_all = [&](std::size_t& counter) {
+      ++counter;
+      if (emit_failures) {
+        for (std::uint32_t cube : cubes) {
+          for (const Triangle& t : triangles_of(cube)) out_.push_back(t);
+        }
+      }
+      return false;
+    };
     for (std::uint32_t cube : cubes) {
       if (!type_of(cubes_[cube].index).plane_producible) {
-        ++stats_.rejected_configuration;
-        return false;
+        return fail_all(stats_.rejected_configuration);
       }
-      face_count += triangles_of(cube).size();
     }
     // The block-local vertex table, by stamps (no clearing per block).
     if (++visit_ == 0) {
@@ -284,12 +296,15 @@ class PieceMerger {
     vertices_.clear();
     masks_.clear();
     next_.clear();
-    areas_.clear();
-    P3 normal{0, 0, 0};
-    std::size_t loop_edges = 0;
+    parent_.clear();
+    local_triangles_.clear();
     for (std::uint32_t cube : cubes) {
-      for (const Triangle& t : triangles_of(cube)) {
-        std::array<std::uint32_t, 3> l;
+      const std::size_t first = cubes_[cube].first_triangle;
+      const std::span<const Triangle> own = triangles_of(cube);
+      for (std::size_t i = 0; i < own.size(); ++i) {
+        const Triangle& t = own[i];
+        LocalTriangle local;
+        local.id = static_cast<std::uint32_t>(first + i);
         for (int k = 0; k < 3; ++k) {
           const VertexId v = t[k];
           if (stamp_[v] != visit_) {
@@ -298,128 +313,220 @@ class PieceMerger {
             vertices_.push_back(v);
             masks_.push_back(static_cast<std::uint8_t>(face_mask(mesh_.positions[v], box)));
             next_.push_back(kNone);
+            parent_.push_back(local_[v]);
           }
-          l[k] = local_[v];
+          local.corner[k] = local_[v];
         }
         for (int k = 0; k < 3; ++k) {
-          const std::uint32_t a = l[k];
-          const std::uint32_t b = l[(k + 1) % 3];
+          const std::uint32_t a = local.corner[k];
+          const std::uint32_t b = local.corner[(k + 1) % 3];
+          unite(a, b);
           if ((masks_[a] & masks_[b]) == 0) continue;
-          // An edge on a block face: a loop edge, directed as its triangle has it.
-          if (next_[a] != kNone) {
-            ++stats_.rejected_topology;  // two loop edges leave one vertex: not one loop
-            return false;
-          }
+          // An edge on a block face: a loop edge, directed as its triangle has it. Two
+          // leaving one vertex: the surface is pinched there, no disk.
+          if (next_[a] != kNone) return fail_all(stats_.rejected_topology);
           next_[a] = b;
-          ++loop_edges;
         }
         const P3 p0 = to_double(mesh_.positions[t[0]]);
-        const P3 area = cross(sub(to_double(mesh_.positions[t[1]]), p0),
-                              sub(to_double(mesh_.positions[t[2]]), p0));
-        areas_.push_back(area);
-        for (int a = 0; a < 3; ++a) normal[a] += area[a];
+        local.area = cross(sub(to_double(mesh_.positions[t[1]]), p0),
+                           sub(to_double(mesh_.positions[t[2]]), p0));
+        local_triangles_.push_back(local);
       }
     }
-    const std::size_t half_edges = 3 * face_count + loop_edges;
-    const auto euler = static_cast<std::int64_t>(vertices_.size()) -
-                       static_cast<std::int64_t>(half_edges / 2) +
-                       static_cast<std::int64_t>(face_count);
-    if (half_edges % 2 != 0 || euler != 1 || loop_edges < 3) {
-      ++stats_.rejected_topology;
-      return false;
+    // Components, numbered in order of their first vertex.
+    components_.clear();
+    component_of_.resize(vertices_.size());
+    for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
+      const std::uint32_t root = find(v);
+      if (root == v) {
+        component_of_[v] = static_cast<std::uint32_t>(components_.size());
+        components_.emplace_back();
+      } else {
+        component_of_[v] = component_of_[root];
+      }
+      Component& c = components_[component_of_[v]];
+      ++c.vertices;
+      if (next_[v] != kNone) {
+        ++c.loop_edges;
+        c.loop_start = v;
+      }
     }
-    // One loop: following it from a loop vertex comes back after all loop edges.
+    for (const LocalTriangle& t : local_triangles_) {
+      Component& c = components_[component_of_[t.corner[0]]];
+      ++c.faces;
+      for (int a = 0; a < 3; ++a) c.normal[a] += t.area[a];
+    }
+    // Per component: one disk (Euler characteristic 1, one loop), facing one way, flat.
+    for (Component& c : components_) {
+      const std::size_t half_edges = 3 * c.faces + c.loop_edges;
+      const auto euler = static_cast<std::int64_t>(c.vertices) -
+                         static_cast<std::int64_t>(half_edges / 2) +
+                         static_cast<std::int64_t>(c.faces);
+      if (half_edges % 2 != 0 || euler != 1 || c.loop_edges < 3) {
+        c.ok = false;
+        ++stats_.rejected_topology;
+        continue;
+      }
+      std::size_t steps = 0;
+      std::uint32_t v = c.loop_start;
+      do {
+        v = next_[v];
+        ++steps;
+      } while (v != c.loop_start && v != kNone && steps <= c.loop_edges);
+      if (v != c.loop_start || steps != c.loop_edges) {
+        c.ok = false;
+        ++stats_.rejected_topology;
+        continue;
+      }
+      const double length = std::sqrt(dot(c.normal, c.normal));
+      if (!(length > 0.0)) {
+        c.ok = false;
+        ++stats_.rejected_facing;
+        continue;
+      }
+      for (double& x : c.normal) x /= length;
+    }
+    for (const LocalTriangle& t : local_triangles_) {
+      Component& c = components_[component_of_[t.corner[0]]];
+      if (c.ok && !(dot(t.area, c.normal) > 0.0)) {
+        c.ok = false;
+        ++stats_.rejected_facing;
+      }
+    }
+    for (Component& c : components_) {
+      if (c.ok) continue;
+      c.normal = {0, 0, 0};
+    }
+    for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
+      Component& c = components_[component_of_[v]];
+      if (!c.ok) continue;
+      const double h = dot(to_double(mesh_.positions[vertices_[v]]), c.normal);
+      c.low = std::min(c.low, h);
+      c.high = std::max(c.high, h);
+    }
+    for (Component& c : components_) {
+      if (c.ok && c.high - c.low > epsilon_) {
+        c.ok = false;
+        ++stats_.rejected_flatness;
+      }
+    }
+    // Separation: a disk whose slab does not leave some other component on one side stays.
+    if (components_.size() > 1) {
+      for (Component& c : components_) c.side = 0;
+      for (std::uint32_t i = 0; i < components_.size(); ++i) {
+        Component& c = components_[i];
+        if (!c.ok) continue;
+        // Per other component: 1 = all its vertices above c's slab, 2 = all below.
+        separated_.assign(components_.size(), 3);
+        for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
+          const std::uint32_t j = component_of_[v];
+          if (j == i) continue;
+          const double h = dot(to_double(mesh_.positions[vertices_[v]]), c.normal);
+          if (!(h > c.high)) separated_[j] &= ~1u;
+          if (!(h < c.low)) separated_[j] &= ~2u;
+        }
+        for (std::uint32_t j = 0; j < components_.size(); ++j) {
+          if (j != i && separated_[j] == 0) {
+            c.ok = false;
+            ++stats_.rejected_separation;
+            break;
+          }
+        }
+      }
+    }
     loop_.clear();
-    {
-      std::uint32_t start = 0;
-      while (next_[start] == kNone) ++start;
-      std::uint32_t v = start;
+    bool all = true;
+    for (Component& c : components_) {
+      if (!c.ok) {
+        all = false;
+        continue;
+      }
+      c.loop_first = static_cast<std::uint32_t>(loop_.size());
+      std::uint32_t v = c.loop_start;
       do {
         loop_.push_back(vertices_[v]);
         v = next_[v];
-      } while (v != start && v != kNone && loop_.size() <= loop_edges);
-      if (v != start || loop_.size() != loop_edges) {
-        ++stats_.rejected_topology;
-        return false;
+      } while (v != c.loop_start);
+      project(std::span(loop_).subspan(c.loop_first), box, c.normal);
+      if (!flat_is_simple()) {
+        c.ok = false;
+        all = false;
+        ++stats_.rejected_outline;
       }
     }
-    const double length = std::sqrt(dot(normal, normal));
-    if (!(length > 0.0)) {
-      ++stats_.rejected_facing;
-      return false;
+    if (!all && !emit_failures) return false;
+    // Record the disks; the other components keep their triangles.
+    for (Component& c : components_) {
+      if (!c.ok) continue;
+      MergedDisk disk;
+      disk.box = box;
+      disk.normal = c.normal;
+      disk.band = c.high - c.low;
+      disk.loop_first = static_cast<std::uint32_t>(loops_.size());
+      disk.loop_size = static_cast<std::uint32_t>(c.loop_edges);
+      disk.face_count = static_cast<std::uint32_t>(c.faces);
+      disk.size = size;
+      loops_.insert(loops_.end(), loop_.begin() + c.loop_first,
+                    loop_.begin() + c.loop_first + c.loop_edges);
+      c.disk = static_cast<std::uint32_t>(disks_.size());
+      disks_.push_back(disk);
     }
-    for (double& c : normal) c /= length;
-    for (const P3& area : areas_) {
-      if (!(dot(area, normal) > 0.0)) {
-        ++stats_.rejected_facing;
-        return false;
+    for (const LocalTriangle& t : local_triangles_) {
+      const Component& c = components_[component_of_[t.corner[0]]];
+      if (!c.ok) {
+        out_.push_back(mesh_.triangles[t.id]);
       }
     }
-    double low = std::numeric_limits<double>::max();
-    double high = std::numeric_limits<double>::lowest();
-    for (VertexId v : vertices_) {
-      const double h = dot(to_double(mesh_.positions[v]), normal);
-      low = std::min(low, h);
-      high = std::max(high, h);
+    // Each disk's triangles, for its demotion (disks are in component order).
+    for (const Component& c : components_) {
+      if (!c.ok) continue;
+      disks_[c.disk].triangles_first = static_cast<std::uint32_t>(disk_triangles_.size());
+      for (const LocalTriangle& t : local_triangles_) {
+        if (&components_[component_of_[t.corner[0]]] == &c) disk_triangles_.push_back(t.id);
+      }
     }
-    if (high - low > epsilon_) {
-      ++stats_.rejected_flatness;
-      return false;
+    return all;
+  }
+
+  std::uint32_t find(std::uint32_t v) {
+    while (parent_[v] != v) {
+      parent_[v] = parent_[parent_[v]];
+      v = parent_[v];
     }
-    project(loop_, box, normal);
-    if (!flat_is_simple()) {
-      ++stats_.rejected_outline;
-      return false;
-    }
-    MergedBlock merged;
-    merged.box = box;
-    merged.normal = normal;
-    merged.band = high - low;
-    merged.loop_first = static_cast<std::uint32_t>(loops_.size());
-    merged.loop_size = static_cast<std::uint32_t>(loop_.size());
-    merged.cubes_first = static_cast<std::uint32_t>(block_cubes_.size());
-    merged.cube_count = static_cast<std::uint32_t>(cubes.size());
-    merged.face_count = static_cast<std::uint32_t>(face_count);
-    merged.size = size;
-    block_cubes_.insert(block_cubes_.end(), cubes.begin(), cubes.end());
-    loops_.insert(loops_.end(), loop_.begin(), loop_.end());
-    const auto id = static_cast<std::uint32_t>(blocks_.size());
-    blocks_.push_back(merged);
-    for (std::uint32_t cube : cubes) owner_[cube] = id;
-    return true;
+    return v;
+  }
+  void unite(std::uint32_t a, std::uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
   }
 
   // ---- Step 2: thin the faces two merged blocks share -------------------------------------------
 
-  // The other merged block when v lies inside a face shared by merged block `self` and one
-  // other merged block (the four cubes around v's lattice edge are theirs), else kNone.
-  std::uint32_t partner(VertexId v, std::uint32_t self) const {
-    const std::array<float, 3>& p = mesh_.positions[v];
-    int axis = -1;
-    for (int a = 0; a < 3; ++a) {
-      if (p[a] != std::floor(p[a])) axis = a;
-    }
-    if (axis < 0) return kNone;
-    const int b = (axis + 1) % 3;
-    const int c = (axis + 2) % 3;
-    std::array<std::int32_t, 3> cell;
-    cell[axis] = static_cast<std::int32_t>(std::floor(p[axis]));
-    std::uint32_t other = kNone;
-    int own = 0;
-    for (int k = 0; k < 4; ++k) {
-      cell[b] = static_cast<std::int32_t>(p[b]) - 1 + (k & 1);
-      cell[c] = static_cast<std::int32_t>(p[c]) - 1 + (k >> 1);
-      const std::uint32_t o = owner_of(cell[0], cell[1], cell[2]);
-      if (o == kNone) return kNone;
-      if (o == self) {
-        ++own;
-      } else if (other == kNone || other == o) {
-        other = o;
-      } else {
-        return kNone;
+  // Which disks' loops pass through each vertex (the first two, and how many).
+  void register_loops() {
+    loop_disks_.assign(mesh_.positions.size(), {kNone, kNone});
+    loop_disk_count_.assign(mesh_.positions.size(), 0);
+    for (std::uint32_t id = 0; id < disks_.size(); ++id) {
+      const MergedDisk& disk = disks_[id];
+      for (std::uint32_t k = 0; k < disk.loop_size; ++k) {
+        const VertexId v = loops_[disk.loop_first + k];
+        if (loop_disk_count_[v] < 2) loop_disks_[v][loop_disk_count_[v]] = id;
+        if (loop_disk_count_[v] < 255) ++loop_disk_count_[v];
       }
     }
-    return own == 2 ? other : kNone;
+  }
+
+  // The other disk when v lies inside a face shared by disk `self` and exactly one other:
+  // the loops of exactly two disks pass through v, and v is inside a face (on no edge) of
+  // both boxes, so the four cubes around v's lattice edge are theirs. Else kNone.
+  std::uint32_t partner(VertexId v, std::uint32_t self) const {
+    if (loop_disk_count_[v] != 2) return kNone;
+    const std::uint32_t other = loop_disks_[v][0] == self ? loop_disks_[v][1] : loop_disks_[v][0];
+    for (std::uint32_t d : {self, other}) {
+      if (std::popcount(face_mask(mesh_.positions[v], disks_[d].box)) != 1) return kNone;
+    }
+    return other;
   }
 
   static double point_segment_distance(const P3& p, const P3& a, const P3& b) {
@@ -471,10 +578,11 @@ class PieceMerger {
   }
 
   void thin_shared_faces() {
+    register_loops();
     std::vector<std::uint32_t> partners;
     std::vector<VertexId> run;
-    for (std::uint32_t id = 0; id < blocks_.size(); ++id) {
-      const MergedBlock& block = blocks_[id];
+    for (std::uint32_t id = 0; id < disks_.size(); ++id) {
+      const MergedDisk& block = disks_[id];
       const std::span<const VertexId> loop(loops_.data() + block.loop_first, block.loop_size);
       const std::size_t n = loop.size();
       partners.resize(n);
@@ -502,7 +610,7 @@ class PieceMerger {
           for (std::size_t r = 1; r < run.size(); ++r) state_[run[r]] = kKept;
         } else {
           run.push_back(loop[end]);
-          const double tolerance = epsilon_ - std::max(block.band, blocks_[other].band);
+          const double tolerance = epsilon_ - std::max(block.band, disks_[other].band);
           thin_run(run, 0, run.size() - 1, tolerance);
           for (std::size_t r = 1; r + 1 < run.size(); ++r) {
             if (state_[run[r]] == kOpen) state_[run[r]] = kKept;
@@ -517,7 +625,7 @@ class PieceMerger {
 
   // Gives back every thinned vertex of the block's loop; the other block of each (the only
   // other block the vertex's loop passes through) must be triangulated again.
-  void restore_loop(const MergedBlock& block, std::uint32_t id, std::vector<std::uint32_t>& again) {
+  void restore_loop(const MergedDisk& block, std::uint32_t id, std::vector<std::uint32_t>& again) {
     for (std::uint32_t k = 0; k < block.loop_size; ++k) {
       const VertexId v = loops_[block.loop_first + k];
       if (state_[v] != kRemoved) continue;
@@ -530,14 +638,14 @@ class PieceMerger {
 
   void triangulate_blocks() {
     std::vector<VertexId> loop;
-    std::vector<std::uint32_t> todo(blocks_.size());
+    std::vector<std::uint32_t> todo(disks_.size());
     for (std::uint32_t id = 0; id < todo.size(); ++id) todo[id] = id;
     std::vector<std::uint32_t> again;
     while (!todo.empty()) {
       ++stats_.triangulation_passes;
       again.clear();
       for (std::uint32_t id : todo) {
-        MergedBlock& block = blocks_[id];
+        MergedDisk& block = disks_[id];
         if (block.demoted) continue;
         const std::span<const VertexId> full(loops_.data() + block.loop_first, block.loop_size);
         loop.clear();
@@ -559,9 +667,6 @@ class PieceMerger {
           // Not even the whole loop: the block keeps its marching-cubes triangles.
           block.demoted = true;
           ++stats_.blocks_demoted;
-          for (std::uint32_t c = 0; c < block.cube_count; ++c) {
-            owner_[block_cubes_[block.cubes_first + c]] = kNone;
-          }
         }
         restore_loop(block, id, again);
         again.push_back(id);
@@ -570,12 +675,10 @@ class PieceMerger {
       again.erase(std::unique(again.begin(), again.end()), again.end());
       todo.swap(again);
     }
-    for (const MergedBlock& block : blocks_) {
+    for (const MergedDisk& block : disks_) {
       if (block.demoted) {
-        for (std::uint32_t c = 0; c < block.cube_count; ++c) {
-          for (const Triangle& t : triangles_of(block_cubes_[block.cubes_first + c])) {
-            out_.push_back(t);
-          }
+        for (std::uint32_t k = 0; k < block.face_count; ++k) {
+          out_.push_back(mesh_.triangles[disk_triangles_[block.triangles_first + k]]);
         }
       } else {
         ++stats_.blocks_merged[static_cast<std::size_t>(
@@ -750,6 +853,27 @@ class PieceMerger {
     return true;
   }
 
+  // A marching-cubes triangle of the block, by block-local corners, with its area vector.
+  struct LocalTriangle {
+    std::array<std::uint32_t, 3> corner;
+    std::uint32_t id;  // in mesh_
+    P3 area;
+  };
+  // A component of the block's surface and its tests.
+  struct Component {
+    std::size_t vertices = 0;
+    std::size_t faces = 0;
+    std::size_t loop_edges = 0;
+    std::uint32_t loop_start = 0;  // a block-local loop vertex
+    std::uint32_t loop_first = 0;  // in loop_
+    P3 normal{0, 0, 0};
+    double low = std::numeric_limits<double>::max();
+    double high = std::numeric_limits<double>::lowest();
+    unsigned side = 0;
+    std::uint32_t disk = kNone;
+    bool ok = true;
+  };
+
   const TriangleMesh& mesh_;
   std::span<const BoundaryCube> cubes_;
   double epsilon_;
@@ -757,18 +881,23 @@ class PieceMerger {
   Box lattice_{};
   std::vector<std::uint32_t> stamp_;  // per piece vertex: the visit that last saw it
   std::vector<std::uint32_t> local_;  // per piece vertex: its block-local index
-  std::vector<std::uint32_t> owner_;  // per cube: its merged block, or kNone
   std::vector<std::uint8_t> state_;   // per piece vertex: VertexState
-  std::vector<std::uint32_t> row_start_;
-  std::int32_t row_width_ = 0;
+  std::vector<std::array<std::uint32_t, 2>> loop_disks_;  // per piece vertex (step 2)
+  std::vector<std::uint8_t> loop_disk_count_;
   std::uint32_t visit_ = 0;
-  std::vector<MergedBlock> blocks_;
+  std::vector<MergedDisk> disks_;
   std::vector<VertexId> loops_;
+  std::vector<std::uint32_t> disk_triangles_;  // the disks' marching-cubes triangles
+  std::vector<Triangle> made_;                 // the disks' new triangles
   // Block-local scratch, reused.
   std::vector<VertexId> vertices_;
   std::vector<std::uint8_t> masks_;
   std::vector<std::uint32_t> next_;
-  std::vector<P3> areas_;
+  std::vector<std::uint32_t> parent_;
+  std::vector<std::uint32_t> component_of_;
+  std::vector<LocalTriangle> local_triangles_;
+  std::vector<Component> components_;
+  std::vector<unsigned> separated_;
   std::vector<VertexId> loop_;
   std::vector<std::array<double, 2>> flat_;
   std::vector<std::uint8_t> flat_masks_;
@@ -776,8 +905,6 @@ class PieceMerger {
   std::vector<std::uint32_t> succ_;
   std::vector<double> score_;
   std::vector<std::uint32_t> scratch_order_;
-  std::vector<std::uint32_t> block_cubes_;  // the cubes of the merged blocks
-  std::vector<Triangle> made_;              // the merged blocks' triangles
   std::vector<Triangle> out_;
 };
 
@@ -807,11 +934,9 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
                 static_cast<std::int32_t>(size.ny - 1 + pad),
                 static_cast<std::int32_t>(last) - pad};
   std::vector<Triangle> triangles;
-  {
     PieceMerger merger(piece.mesh, piece.cubes, options, out.stats);
     merger.run(lattice, static_cast<std::int32_t>(options.block_cubes));
-    triangles = std::move(merger.triangles());
-  }
+    triangles = merger.triangles();
   piece.cubes = {};
 
   // Compaction: the vertices still used, in their order (so the seam's stay first, in order).
@@ -834,10 +959,20 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   out.mesh.triangles = std::move(triangles);
   // Seam vertices lie on block faces, so they are loop vertices and stay.
   for (std::size_t v = 0; v < out.shared; ++v) {
-    if (new_id[v] != v) throw std::logic_error("fused merge dropped a seam vertex");
+    if (new_id[v] != v) {
+      const auto& p = piece.mesh.positions[v];
+      std::fprintf(stderr, "seam vertex %zu at %.3f %.3f %.3f (first %lld), new id %u\n", v, p[0], p[1], p[2], (long long)first, new_id[v]);
+      for (const auto& t : piece.mesh.triangles) for (auto u : t) if (u == v) { std::fprintf(stderr, " in MC tri\n"); }
+      throw std::logic_error("fused merge dropped a seam vertex");
+    }
   }
   for (std::size_t v = piece.top_first; v < piece.top_end; ++v) {
-    if (new_id[v] == kNone) throw std::logic_error("fused merge dropped a seam vertex");
+    if (new_id[v] == kNone) {
+      const auto& p = piece.mesh.positions[v];
+      merger.explain(static_cast<VertexId>(v));
+      std::fprintf(stderr, "top seam vertex %zu at %.3f %.3f %.3f (first %lld last %lld)\n", v, p[0], p[1], p[2], (long long)first, (long long)last);
+      throw std::logic_error("fused merge dropped a seam vertex");
+    }
     out.top.push_back(new_id[v]);
   }
   out.stats.triangles_after = out.mesh.triangles.size();

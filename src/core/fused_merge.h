@@ -84,6 +84,7 @@ struct FusedMergeStats {
   std::size_t rejected_facing = 0;         // a triangle faces away from the mean normal
   std::size_t rejected_flatness = 0;       // thicker than epsilon
   std::size_t rejected_outline = 0;        // the projected loop is not simple
+  std::size_t rejected_separation = 0;     // no plane parts it from another component
   // Merged blocks whose loop could not be triangulated (no valid ear left) or not with fewer
   // triangles than marching cubes: their cubes keep marching cubes' triangles.
   std::size_t blocks_demoted = 0;
