@@ -303,11 +303,11 @@ int main(int argc, char** argv) {
           std::fflush(stdout);
           if (fused) {
             const auto& f = fused_stats;
-            std::printf("    blocks merged 2/4/8/16: %zu/%zu/%zu/%zu; rejected: configuration %zu "
+            std::printf("    blocks merged 2x2x1/2/4/8/16: %zu/%zu/%zu/%zu/%zu; rejected: configuration %zu "
                         "topology %zu facing %zu flatness %zu outline %zu; "
                         "demoted %zu; face vertices thinned %zu, restored %zu, passes %zu\n",
                         f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2],
-                        f.blocks_merged[3], f.rejected_configuration, f.rejected_topology,
+                        f.blocks_merged[3], f.blocks_merged[4], f.rejected_configuration, f.rejected_topology,
                         f.rejected_facing, f.rejected_flatness, f.rejected_outline,
                         f.blocks_demoted, f.face_vertices_removed,
                         f.face_vertices_restored, f.triangulation_passes);

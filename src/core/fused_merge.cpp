@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <limits>
 #include <span>
 #include <stdexcept>
@@ -189,7 +190,23 @@ class PieceMerger {
   bool test_block(std::span<std::uint32_t> cubes, const Box& box, std::int32_t size) {
     if (cubes.empty()) return true;
     if (size <= 2) {
-      return try_merge(cubes, box, size, /*emit_failures=*/true);
+      if (std::getenv("FM_NOHALF")) return try_merge(cubes, box, size, true);
+      if (try_merge(cubes, box, size, /*emit_failures=*/false)) return true;
+      // Its two layers alone (2 × 2 × 1): thinner along z, where slices are often thicker.
+      const auto mid = std::stable_partition(cubes.begin(), cubes.end(), [&](std::uint32_t c) {
+        return cubes_[c].z == box.lo[2];
+      });
+      const auto split = static_cast<std::size_t>(mid - cubes.begin());
+      for (int k = 0; k < 2; ++k) {
+        const std::span<std::uint32_t> layer =
+            k == 0 ? cubes.subspan(0, split) : cubes.subspan(split);
+        if (layer.empty()) continue;
+        Box thin = box;
+        thin.lo[2] = box.lo[2] + k;
+        thin.hi[2] = std::min(thin.lo[2] + 1, box.hi[2]);
+        try_merge(layer, thin, 1, /*emit_failures=*/true);
+      }
+      return false;
     }
     const std::int32_t half = size / 2;
     // Stable partition into the eight octants, in scan order (z, then y, then x).
@@ -284,9 +301,7 @@ class PieceMerger {
       return false;
     };
     for (std::uint32_t cube : cubes) {
-      if (!type_of(cubes_[cube].index).plane_producible) {
-        return fail_all(stats_.rejected_configuration);
-      }
+      (void)cube;
     }
     // The block-local vertex table, by stamps (no clearing per block).
     if (++visit_ == 0) {
@@ -682,8 +697,7 @@ class PieceMerger {
         }
       } else {
         ++stats_.blocks_merged[static_cast<std::size_t>(
-                                   std::countr_zero(static_cast<unsigned>(block.size))) -
-                               1];
+            std::countr_zero(static_cast<unsigned>(block.size)))];
         out_.insert(out_.end(), made_.begin() + block.made_first,
                     made_.begin() + block.made_first + block.made_count);
       }
