@@ -204,7 +204,22 @@ class PieceMerger {
         Box thin = box;
         thin.lo[2] = box.lo[2] + k;
         thin.hi[2] = std::min(thin.lo[2] + 1, box.hi[2]);
-        try_merge(layer, thin, 1, /*emit_failures=*/true);
+        if (std::getenv("FM_NOPAIR")) { try_merge(layer, thin, 1, true); continue; }
+        if (try_merge(layer, thin, 1, /*emit_failures=*/false)) continue;
+        // Its two rows alone (2 × 1 × 1).
+        const auto row_mid = std::stable_partition(layer.begin(), layer.end(), [&](std::uint32_t c) {
+          return cubes_[c].y == box.lo[1];
+        });
+        const auto row_split = static_cast<std::size_t>(row_mid - layer.begin());
+        for (int r = 0; r < 2; ++r) {
+          const std::span<std::uint32_t> row =
+              r == 0 ? layer.subspan(0, row_split) : layer.subspan(row_split);
+          if (row.empty()) continue;
+          Box narrow = thin;
+          narrow.lo[1] = box.lo[1] + r;
+          narrow.hi[1] = std::min(narrow.lo[1] + 1, box.hi[1]);
+          try_merge(row, narrow, 1, /*emit_failures=*/true);
+        }
       }
       return false;
     }
