@@ -1,7 +1,7 @@
 // extract_bench: surface extraction speed and quality on a real series or a synthetic volume.
 //
 //   extract_bench --series DIR [--iso 300,-500]
-//                 [--algorithms mc,classic,tm,tm012,tm-unguarded,classify]
+//                 [--algorithms mc,classic,tm,classify]
 //                 [--threads 1,2] [--repeat 5]
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
@@ -11,8 +11,7 @@
 // vertices, the peak resident memory added during extraction, and the validity of the surface
 // (boundary, non-manifold and degenerate counts). For tm it then prints the triangle ratio to
 // mc and the symmetric Hausdorff and mean distances between the two surfaces, in voxels and
-// mm (tm012: type merging without type 3; tm-unguarded: without the crossing guard, to show
-// its cost), vertex-sampled and sampled over both surfaces (every 0.25 voxel, in voxels;
+// mm, vertex-sampled and sampled over both surfaces (every 0.25 voxel, in voxels;
 // vertex samples alone miss the insides of merged polygons); for mc the ambiguity statistics of
 // the paper's Table 4. For every surface: crossing triangle pairs in patient mm as convert writes them
 // (exact, core/self_intersections.h) and the shares of triangles with an angle above 170° and
@@ -36,7 +35,6 @@
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
-#include "core/fused_merge.h"
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
@@ -127,7 +125,7 @@ double median_ms(std::vector<double> times) {
 int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
-               "       [--algorithms mc,classic,tm,tm012,classify] [--threads 1,2] [--repeat 5]\n"
+               "       [--algorithms mc,classic,tm,classify] [--threads 1,2] [--repeat 5]\n"
                "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
   return 2;
 }
@@ -205,25 +203,16 @@ int main(int argc, char** argv) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
         core::AmbiguityStats ambiguity;
-        const bool fused = algorithm == "fm";
-        const bool merged =
-            fused || algorithm == "tm" || algorithm == "tm012" || algorithm == "tm-unguarded";
+        const bool merged = algorithm == "tm";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;
         else if (algorithm == "mc") options.stats = &ambiguity;
         else if (!merged) return usage();
         core::MergeOptions merge;
-        merge.type3 = algorithm != "tm012";
-        merge.prevent_crossings = algorithm != "tm-unguarded";
         merge.slab_layers = slab_layers;
+        merge.threads = options.threads;
         std::vector<double> times;
         core::TriangleMesh mesh;
         core::MergeStats merge_stats;
-        core::FusedMergeStats fused_stats;
-        core::FusedMergeOptions fused_options;
-        fused_options.slab_layers = slab_layers;
-        if (const char* b = std::getenv("FM_BLOCK")) fused_options.block_cubes = std::stoi(b);
-        if (const char* e = std::getenv("FM_EPS")) fused_options.epsilon_voxels = std::stod(e);
-        fused_options.threads = options.threads;
         long peak_added = 0;
         for (int r = 0; r < repeat; ++r) {
           mesh = {};
@@ -232,10 +221,8 @@ int main(int argc, char** argv) {
           const long before = current_memory_kib();
           reset_peak_memory();
           const auto start = std::chrono::steady_clock::now();
-          mesh = fused    ? core::extract_fused_merged(volume, iso, options, fused_options,
-                                                       &fused_stats)
-                 : merged ? core::extract_type_merged(volume, iso, options, merge, &merge_stats)
-                          : core::extract_isosurface(volume, iso, options);
+          mesh = merged ? core::extract_type_merged(volume, iso, options, merge, &merge_stats)
+                        : core::extract_isosurface(volume, iso, options);
           const auto end = std::chrono::steady_clock::now();
           peak_added = std::max(peak_added, peak_memory_kib() - before);
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
@@ -260,12 +247,6 @@ int main(int argc, char** argv) {
           std::printf("    crossing pairs %zu (counted in %.0f ms); angles > 170°: %.2f%%, "
                       "< 1°: %.2f%%\n",
                       crossings, crossing_ms, angles.above_170, angles.below_1);
-          if (merged) {
-            std::printf("    crossing guard: %zu re-merge(s), %zu vertices frozen, %zu pairs "
-                        "left\n",
-                        merge_stats.crossing_rounds, merge_stats.vertices_frozen,
-                        merge_stats.crossings_left);
-          }
         }
         if (algorithm == "mc" && thread_text == split(thread_list).front()) {
           reference = mesh;
@@ -301,29 +282,16 @@ int main(int argc, char** argv) {
                       "mean %.4f voxel\n",
                       sampled.hausdorff(), sampled.mean());
           std::fflush(stdout);
-          if (fused) {
-            const auto& f = fused_stats;
-            std::printf("    blocks merged 2x2x1/2/4/8/16: %zu/%zu/%zu/%zu/%zu; rejected: configuration %zu "
-                        "topology %zu facing %zu flatness %zu outline %zu; "
-                        "demoted %zu; face vertices thinned %zu, restored %zu, passes %zu\n",
-                        f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2],
-                        f.blocks_merged[3], f.blocks_merged[4], f.rejected_configuration, f.rejected_topology,
-                        f.rejected_facing, f.rejected_flatness, f.rejected_outline,
-                        f.blocks_demoted, f.face_vertices_removed,
-                        f.face_vertices_restored, f.triangulation_passes);
-            continue;
-          }
-          const auto& s = merge_stats;
-          std::printf(
-              "    merges by type %zu/%zu/%zu (hexagon %zu, minor %zu), type-3 blocks %zu, "
-              "capped %zu, "
-              "abandoned %zu; collapses %zu of %zu; rejected: boundary %zu "
-              "link %zu fan %zu normal %zu gradient %zu distance %zu class %zu\n",
-              s.cubes_merged_by_type[0], s.cubes_merged_by_type[1], s.cubes_merged_by_type[2],
-              s.hexagon_merges, s.minor_merges, s.type3_groups, s.runs_capped, s.merges_abandoned,
-              s.collapses_done, s.collapses_tried, s.rejected_boundary, s.rejected_link,
-              s.rejected_fan_size, s.rejected_normal, s.rejected_gradient, s.rejected_distance,
-              s.rejected_class_size);
+          const auto& f = merge_stats;
+          std::printf("    disks merged in blocks 2x1x1 or 2x2x1/2/4/8/16: %zu/%zu/%zu/%zu/%zu; "
+                      "blocks not merged: topology %zu facing %zu flatness %zu outline %zu "
+                      "separation %zu; demoted %zu; face vertices thinned %zu (restored %zu) in "
+                      "%zu passes\n",
+                      f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2],
+                      f.blocks_merged[3], f.blocks_merged[4], f.rejected_topology,
+                      f.rejected_facing, f.rejected_flatness, f.rejected_outline,
+                      f.rejected_separation, f.blocks_demoted, f.face_vertices_removed,
+                      f.face_vertices_restored, f.triangulation_passes);
         }
       }
     }

@@ -5,8 +5,9 @@
 //  * every triangle index is a vertex of the mesh, for all three;
 //  * consistent mode with closed borders: closed, manifold, consistently oriented, no
 //    degenerate triangle; with open borders the same except boundary edges;
-//  * type merging, in pieces of 1 to 4 layers, keeps those guarantees and the Euler
-//    characteristic and number of components of the marching-cubes mesh it merges;
+//  * type merging, in pieces of 1 to 4 layers and blocks of 2 to 8 cubes, keeps those
+//    guarantees and the Euler characteristic and number of components of the marching-cubes
+//    mesh it merges, and stays within epsilon of it (sampled over both surfaces);
 //  * threads > 1 give the serial output exactly (extraction and type merging);
 //  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
@@ -18,6 +19,7 @@
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
+#include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
 #include "fuzz_input.h"
@@ -110,6 +112,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // Pieces of 1 to 4 cube layers: most vertices lie on or near a seam.
   MergeOptions merge;
   merge.slab_layers = 1 + static_cast<unsigned>(in.pick(4));
+  merge.block_cubes = 2u << in.pick(3);
   const TriangleMesh tm = extract_type_merged(volume, iso, options, merge);
   check_indices(tm);
   if (try_threads) {
@@ -125,8 +128,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                         tm_check.components != mc_check.components)) {
     violated("type merging changed the topology");
   }
-  // No two triangles cross (exact predicates): marching cubes by construction, type merging
-  // by its crossing guard.
+  if (!mc.empty() && surface_distance(mc, tm, 0.25, 1).hausdorff() > merge.epsilon_voxels + 1e-4) {
+    violated("type merging left the marching-cubes surface by more than epsilon");
+  }
+  // No two triangles cross (exact predicates): both by construction (cubes, blocks).
   if (!find_self_intersections(mc).pairs.empty()) violated("marching cubes made crossing triangles");
   if (!find_self_intersections(tm).pairs.empty()) violated("type merging made crossing triangles");
   return 0;

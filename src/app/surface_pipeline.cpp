@@ -144,14 +144,12 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     if (options.algorithm == "tm") {
       core::MergeStats stats;
       mesh = core::extract_type_merged(source, iso, extract, {}, &stats);
+      std::size_t disks = 0;
+      for (std::size_t n : stats.blocks_merged) disks += n;
       details = {{"mc_triangles", std::to_string(stats.triangles_before)},
-                 {"merged_cubes", std::to_string(stats.cubes_merged_by_type[0] +
-                                                 stats.cubes_merged_by_type[1] +
-                                                 stats.cubes_merged_by_type[2])},
-                 {"type3_blocks", std::to_string(stats.type3_groups)},
-                 // The crossing guard (core/type_merging.h): re-merges, vertices frozen.
-                 {"crossing_rounds", std::to_string(stats.crossing_rounds)},
-                 {"vertices_frozen", std::to_string(stats.vertices_frozen)}};
+                 {"merged_disks", std::to_string(disks)},
+                 {"face_vertices_thinned",
+                  std::to_string(stats.face_vertices_removed - stats.face_vertices_restored)}};
     } else {
       mesh = core::extract_isosurface(source, iso, extract);
     }

@@ -11,13 +11,28 @@
 #include <vector>
 
 #include "core/parallel.h"
-#include "core/type_merging.h"  // detail::point_triangle_distance_squared
 
 namespace typemerge::core {
 
 namespace {
 
 using P3 = std::array<double, 3>;
+
+P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+double dot3(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+P3 cross3(const P3& a, const P3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+double point_segment_distance_squared(const P3& p, const P3& a, const P3& b) {
+  const P3 ab = sub(b, a);
+  const P3 ap = sub(p, a);
+  const double len2 = dot3(ab, ab);
+  double t = len2 > 0.0 ? dot3(ap, ab) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const P3 q = {a[0] + t * ab[0] - p[0], a[1] + t * ab[1] - p[1], a[2] + t * ab[2] - p[2]};
+  return dot3(q, q);
+}
 
 P3 to_p3(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
 
@@ -172,6 +187,38 @@ class TriangleGrid {
 };
 
 }  // namespace
+
+namespace detail {
+
+double point_triangle_distance_squared(const P3& p, const P3& a, const P3& b, const P3& c) {
+  const P3 ab = sub(b, a);
+  const P3 ac = sub(c, a);
+  const P3 n = cross3(ab, ac);
+  const double n2 = dot3(n, n);
+  const double scale = std::max({dot3(ab, ab), dot3(ac, ac), 1e-300});
+  if (n2 <= 1e-24 * scale * scale) {
+    // Degenerate: the triangle is (at most) its three edges.
+    return std::min({point_segment_distance_squared(p, a, b),
+                     point_segment_distance_squared(p, b, c),
+                     point_segment_distance_squared(p, c, a)});
+  }
+  // Inside the prism over the triangle: distance to the plane; else to the nearest edge.
+  const P3 ap = sub(p, a);
+  const P3 bp = sub(p, b);
+  const P3 cp = sub(p, c);
+  const double wa = dot3(cross3(sub(c, b), bp), n);
+  const double wb = dot3(cross3(sub(a, c), cp), n);
+  const double wc = dot3(cross3(ab, ap), n);
+  if (wa >= 0.0 && wb >= 0.0 && wc >= 0.0) {
+    const double h = dot3(ap, n);
+    return h * h / n2;
+  }
+  return std::min({point_segment_distance_squared(p, a, b),
+                   point_segment_distance_squared(p, b, c),
+                   point_segment_distance_squared(p, c, a)});
+}
+
+}  // namespace detail
 
 MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
                                      unsigned threads) {

@@ -13,6 +13,7 @@
 // CT surfaces, split over `threads`. Results do not depend on the thread count.
 #pragma once
 
+#include <array>
 #include <cstddef>
 
 #include "core/mesh.h"
@@ -56,5 +57,16 @@ TriangleMesh surface_samples(const TriangleMesh& mesh, double spacing);
 // distances of the surfaces (to within `spacing`).
 SymmetricMeshDistance surface_distance(const TriangleMesh& a, const TriangleMesh& b,
                                        double spacing, unsigned threads = 0);
+
+namespace detail {
+
+// Squared distance from point p to triangle (a, b, c) (Ericson, Real-Time Collision
+// Detection §5.1.5); correct for degenerate triangles too.
+double point_triangle_distance_squared(const std::array<double, 3>& p,
+                                       const std::array<double, 3>& a,
+                                       const std::array<double, 3>& b,
+                                       const std::array<double, 3>& c);
+
+}  // namespace detail
 
 }  // namespace typemerge::core

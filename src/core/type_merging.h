@@ -1,196 +1,126 @@
-// Type merging (Oh & Park 1996, "A type-merging algorithm for extracting an isosurface from
-// volumetric data", The Visual Computer 12:406–419), as specified in type-merging-spec.md:
-// §1.5 scan order, §2.3 moving table, §3 / Appendix A type table (tables in
-// type_merging_tables.h), §4.1–4.2 the merge procedure with FLAG consistency, §4.4 decisions
-// D1–D11, §4.5 the checked variant, and type 3 (§3.4, D10) last.
+// Type merging, fused into the scan: marching cubes and the merge of flat patches in one pass
+// over the lattice, in windows of a few cube layers (the paper's streaming: Oh & Park 1996,
+// "A type-merging algorithm for extracting an isosurface from volumetric data", §4), the
+// merged triangles emitted directly. The paper merges runs of cubes of one type along scan
+// directions by moving vertices; this merges whole flat disks in boxes of cubes and
+// re-triangulates each from its border, which reduces more (abdomen CT bone 54 %, skin 21 % of
+// marching cubes' triangles, against 58 % and 31 % for the post-pass of checked vertex moves
+// this replaced), keeps triangles well shaped and cannot make crossing triangles.
 //
-// What it does: the marching-cubes mesh is reduced by merging runs of cubes with the same
-// index along a direction of the type table. Each merge of C with C + d moves the surface
-// vertices on the rear edges of C + d onto its front edges (moving table row d), which is done
-// as half-edge collapses on the indexed mesh. Unlike the paper, every collapse is checked
-// (§4.5): link condition (manifold and topology preserved), no fold-over (a moved triangle
-// turns by at most max_normal_change_deg, and its normal stays within
-// max_normal_to_gradient_deg of the mean MC vertex normal, i.e. of −∇f), and every original
-// MC vertex absorbed by an affected vertex stays within epsilon_voxels of the new mesh. Runs
-// are capped at run_cap cubes. Type 3 then removes, with the same checks, the vertex at the
-// centre of each 2×2 block of cubes that one plane makes with corner cubes on a diagonal
-// (type3_blocks in type_merging_tables.h: the paper's four slice groups, their mirror images
-// and the same blocks in the xz and yz planes) and the vertices next to it on the block's
-// internal edges, as spec §3.4 suggests. Surviving vertices keep their MC position and normal, so
-// every output vertex lies exactly on the MC surface. Zero-area slivers left by collinear
-// vertices (frequent on flat data) are removed by exact collapses afterwards (D6).
+// What it does, per piece of slab_layers cube layers:
+//  1. Blocks of B × B × B cubes (B = block_cubes, aligned to the piece; cut by the piece's and
+//     the lattice's ends) are tested bottom up: each 2 × 2 × 2 block (or, if it fails, each of
+//     its two layers 2 × 2 × 1, or each of their rows 2 × 1 × 1), then every block of twice the
+//     edge whose eight halves all passed, which then replaces them if it passes too. The
+//     marching-cubes triangles of a box split into components (through shared vertices); a
+//     component passes when it
+//      * is one disk: Euler characteristic 1 and one boundary loop, the loop being its edges
+//        that lie on the box's faces (every other edge has a triangle on each side);
+//      * faces one way: every triangle's normal has a positive component along the disk's
+//        mean normal n (the sum of its area vectors), and the loop projected along n is a
+//        simple polygon, so the projection is one-to-one on the disk;
+//      * is flat: its vertices lie in a slab n·p ∈ [t, t + w] with w <= epsilon_voxels (index
+//        space);
+//      * is separated from every other component of the box by its slab (all their vertices
+//        on one side of it).
+//     Components that fail keep their marching-cubes triangles.
+//  2. A loop vertex inside a face that the boxes of exactly two passing disks share (on no
+//     edge of either box) is thinned away where both loops can do without it: Douglas–Peucker
+//     on the face's polyline, within epsilon − max(w₁, w₂), never shortcutting along a lattice
+//     line (a box edge, shared by other boxes). Both disks drop the same vertices.
+//  3. Each disk's loop is triangulated in the projection by clipping ears, best smallest
+//     angle first, never with an edge between two loop vertices on one face of its box. A
+//     disk that cannot be (or not with at most as many triangles) gets its thinned vertices
+//     back, its neighbours are triangulated again, and with all of them back it keeps its
+//     marching-cubes triangles; this ends because vertices only come back.
 //
-// Guarantees (for a closed, manifold MC mesh, i.e. consistent mode): the output is closed,
-// edge- and vertex-manifold, consistently oriented, with the same Euler characteristic and
-// number of components as the MC mesh. Vertices on a mesh boundary (close_borders off,
-// classic mode's holes, a piece's seams) never move and never absorb another vertex, so
-// boundaries are kept exactly.
+// Guarantees (argued in index space; the tests check them in the float32 patient coordinates
+// the files are written in, with CGAL's exact predicates, on synthetic and real CT):
+//  * Closed, manifold, oriented, with marching cubes' Euler characteristic and components: a
+//    disk is replaced by a disk with the same border, wound like it (the loop is
+//    counter-clockwise about n). A new inner edge joins two loop vertices on no common face of
+//    the box; an edge outside the box lies in a cube outside it, whose corners on the box lie
+//    on one face: so no edge is made twice. A thinned face edge joins two vertices of the
+//    face not on one lattice line: only the two disks' cubes touch it.
+//  * Within epsilon over the whole surfaces, not only at vertices: the old disk and its
+//    triangulation lie in the slab and project one-to-one onto the same polygon, so every
+//    point of either lies within w of the other along n; thinning moves the border within
+//    the face by at most epsilon − w. Every output vertex is a marching-cubes vertex, unmoved.
+//  * No crossings: marching cubes' triangles cannot cross (each lies in its own cube, and
+//    within a cube the case table's do not). A new triangle lies in its box (convex), which
+//    holds no other triangles but those of components its slab separates from it; its
+//    vertices are on the box's faces but never all on one, so only its loop edges reach the
+//    box's surface, where the surface outside meets it along those same edges (the polylines
+//    on the faces, shared by the boxes or cubes on both sides). Within a disk, the triangles
+//    of a planar triangulation of its projection cannot cross. Boxes meet only on faces.
+//  * Borders are kept: a vertex on the mesh border (close_borders off) or a piece seam lies
+//    on box faces that no second disk shares, so it stays, as does every border edge.
 //
-// No crossings (the crossing guard, MergeOptions::prevent_crossings): the local checks above
-// cannot see a second sheet of surface a voxel away (two cortices, cortex and marrow wall), so
-// a stretched fan can reach through it: 8 crossing pairs on the abdomen CT's bone. The
-// argument: marching cubes' triangles cannot cross (each lies in its own cube, and within a
-// cube the case table's triangles do not cross), and a vertex that is frozen (neither moves
-// nor absorbs another) keeps its MC triangles' corners. So after merging, the triangles that
-// are not MC triangles as they were are tested exactly against every triangle whose box they
-// meet (core/self_intersections.h; on the float positions the output will be written with,
-// patient mm for extract_type_merged, so the guarantee holds in millimetres whatever the
-// spacing); the input vertices of every class at a corner of a crossing pair are frozen, and
-// the piece is merged again from its MC surface. Each round freezes at least the two members
-// of some merged class (a crossing pair has a changed triangle, so a corner whose class has
-// more than one member, none of them frozen), so the rounds end; at the worst every vertex
-// near a crossing is frozen and the surface there is marching cubes'. The output then has no
-// crossing pair but those marching cubes' own floats would have (none in any test; counted in
-// MergeStats::crossings_left). Pieces cannot cross each other: a piece's triangles lie in its
-// layers and meet the next piece's only at seam vertices and seam edges, which merging never
-// moves. Cost: the exact test of the changed triangles each round, and a second merge of each
-// piece where a pair crossed (abdomen, 1 thread: 300 HU 726 → 1,539 ms, one piece of five
-// merged twice; −500 HU 2,564 → 3,102 ms, none); memory: the search's grid, about 100 bytes a
-// triangle of one piece, held after the merge state is freed (README, "The crossing guard").
-//
-// Memory of merge_types (the whole-mesh approach of §4.5, "polygonize, merge, compact"):
-// peak ≈ the MC mesh (24 bytes per vertex, 12 per triangle) + 20 bytes per boundary cube
-// (lattice records from the extractor) + 32 bytes per vertex (union-find parent, class ring,
-// fan ring, class size, CSR offset and live end, distance witness and its version) + 28
-// bytes per triangle (CSR incidence, current corners, shape version and alive bit) + 1 byte per
-// triangle (fan slot) + 3 bytes per boundary cube (FLAG, run length, started) + 4 bytes per
-// cube row (y, z) + the compacted output — about 80 bytes per MC triangle (abdomen bone: 843,594
-// triangles, 422,065 vertices, 411,058 cubes). No
-// per-vertex heap allocation, no hash map: everything is a flat array indexed by vertex,
-// triangle or cube record.
-//
-// Streaming (extract_type_merged, spec §4.5's slabs): the lattice is cut into pieces of
-// MergeOptions::slab_layers cube layers. Each piece is extracted alone (marching cubes with
-// its cube records), merged alone in the paper's scan order, compacted and appended to the
-// output; its seams (the vertices of its first and last slice) lie on its boundary, so no
-// merge moves them or moves a vertex onto them, and the pieces join exactly where
-// extract_isosurface's slabs join. With one thread one piece exists at a time, so
-// peak ≈ the output mesh + 80 bytes per MC triangle of one piece + 31 bytes × the padded
-// slice area (the extractor's slice buffers) — bounded by a few dozen slices whatever the
-// number of slices (abdomen CT, slices repeated up to N = 1072: README); with T threads up to
-// T + 1 pieces exist (T being made, one waiting for its predecessor to be appended). The
-// output is the same for every thread count; it depends on slab_layers (runs stop at seams).
-//
-// Parallelism: pieces are independent, so `threads` of them are made at once, each appended
-// as soon as the pieces before it are (a slow piece holds up the appending, not the other
-// threads: abdomen, 2 threads, 8–14 % faster than making them in waves). merge_types, on a
-// whole mesh, is one serial pass in scan order.
+// Streaming and memory: each piece is extracted alone with its cube records (marching cubes'
+// slabs), merged, compacted and appended. Peak ≈ the output mesh + per piece being made: its
+// marching-cubes mesh and cube records (about 60 bytes per MC triangle) + the merge's per-vertex
+// state (18 bytes per vertex) and its disks' loops and triangles + 31 bytes × the padded
+// slice area (the extractor's buffers) — flat in the number of slices; with T threads up to
+// T + 1 pieces exist. The output is the same for every thread count; it depends on
+// slab_layers and block_cubes (no box crosses a seam: seams cost some reduction).
 #pragma once
 
 #include <array>
 #include <cstddef>
-#include <span>
 
 #include "core/marching_cubes.h"
 #include "core/mesh.h"
-#include "core/type_merging_tables.h"
 #include "core/volume.h"
 
 namespace typemerge::core {
 
 struct MergeOptions {
-  // D7: every original MC vertex stays within this distance (voxels) of the merged mesh.
+  // The slab a merged disk must lie in (index space; voxels, so 1.5 mm along z for 3 mm
+  // slices): the Hausdorff distance between the merged and the marching-cubes surface is at
+  // most this.
   double epsilon_voxels = 0.5;
-  // D9: most cubes in one merged run (2 = pairs only). Bounds needle triangles: the spec's
-  // prototype loses 0.3–3 points of reduction on curved surfaces with a cap of 4.
-  int run_cap = 6;
-  // Most MC vertices one output vertex may absorb (its class; 0 = no limit). A collapse that
-  // would make a larger class is rejected. Bounds the cost of a collapse, which tests every
-  // absorbed vertex against the new fan (D7): on the flat caps close_borders puts where a CT
-  // body meets the volume border, classes otherwise grow to over 1,500 vertices. Costs little
-  // reduction: abdomen CT skin +1.3 % triangles, bone +0.004 %.
-  std::uint32_t max_class_vertices = 64;
-  // D10: type-3 blocks (spec §3.4), after types 0–2. They reduce what types 0–2 cannot
-  // (generic plane (1,2,3): 100 % → 44 % of MC) and cost some time; abdomen CT, 1 thread
-  // (`extract_bench --algorithms mc,tm012,tm`): bone 300 HU 68.4 % → 57.9 % of MC
-  // triangles, skin −500 HU 39.9 % → 30.8 %, Hausdorff still 0.5 voxel; 372 → 468 ms and
-  // 1.49 → 1.79 s.
-  bool type3 = true;
-  // D4: hexagons merge along the paper's two lines with an x component; true adds the third.
-  bool hexagon_all_lines = false;
-  // §4.5 fold-over tests.
-  double max_normal_change_deg = 45.0;
-  double max_normal_to_gradient_deg = 80.0;
-  // D6: collapse zero-area slivers after merging.
-  bool remove_slivers = true;
-  // extract_type_merged: pieces of this many cube layers (z) are extracted and merged alone,
-  // their seams fixed (see Streaming above); 0 = one piece, the whole surface in the paper's
-  // scan order. Seams cost some reduction and smaller pieces less memory and time; abdomen CT
-  // (134 slices), 1 thread, tm/mc triangles and time (`extract_bench --algorithms mc,tm
-  // --slab-layers L`, one run): bone 300 HU: 16 → 58.9 %, 438 ms; 32 → 57.9 %, 471 ms;
-  // 64 → 57.6 %, 546 ms; one piece 57.1 %, 509 ms. −500 HU: 16 → 32.7 %, 1.48 s; 32 →
-  // 30.8 %, 1.77 s; 64 → 29.6 %, 2.15 s; one piece 28.4 %, 2.41 s. (merge_types ignores it.)
+  // Largest block edge in cubes (a power of two >= 2). Larger blocks rarely pass on CT (few
+  // 16-blocks are flat within half a voxel) and cost a test each.
+  unsigned block_cubes = 8;
+  // Cube layers per piece (0 = one piece); blocks are aligned to the piece.
   unsigned slab_layers = 32;
-  // extract_type_merged: pieces made at once; 0 = hardware concurrency. (merge_types is
-  // serial.)
+  // Pieces made at once; 0 = hardware concurrency.
   unsigned threads = 1;
-  // The crossing guard (see "No crossings" above): no two output triangles cross.
-  bool prevent_crossings = true;
 };
 
 struct MergeStats {
-  // Merges (C absorbed C + d) by paper type 0, 1, 2; of the type-2 merges, those of hexagons
-  // and of minor cubes; by direction (MergeDirection order).
-  std::array<std::size_t, 3> cubes_merged_by_type{};
-  std::size_t hexagon_merges = 0;
-  std::size_t minor_merges = 0;
-  std::array<std::size_t, kMergeDirectionCount> merges_by_direction{};
-  std::size_t type3_groups = 0;  // type-3 blocks whose centre vertex was removed
-  std::size_t runs_capped = 0;  // a merge was possible but the run had run_cap cubes
-  std::size_t merges_abandoned = 0;  // some collapse was rejected: the merge was undone
-  std::size_t rejected_sliver = 0;   // of those: a sliver it made could not be removed
-
-  std::size_t collapses_tried = 0;  // vertex moves of merges and of the sliver clean-up
-  std::size_t collapses_done = 0;
-  std::size_t rejected_boundary = 0;  // the moving or absorbing vertex is on a boundary
-  std::size_t rejected_link = 0;      // not an edge, or the link condition fails
-  std::size_t rejected_fan_size = 0;  // fan larger than the fixed buffers (kMaxFan)
-  std::size_t rejected_normal = 0;    // a triangle would turn by more than the limit
-  std::size_t rejected_gradient = 0;  // a triangle would face away from the MC normals
-  std::size_t rejected_distance = 0;  // an absorbed MC vertex would be farther than epsilon
-  std::size_t rejected_class_size = 0;  // the class would exceed max_class_vertices
-  std::size_t rejected_frozen = 0;      // a vertex the crossing guard froze
-
-  // The crossing guard: merges repeated with more vertices frozen, vertices frozen, and
-  // crossing pairs left that no merge made (zero unless rounding to patient floats makes one).
-  std::size_t crossing_rounds = 0;
-  std::size_t vertices_frozen = 0;
-  std::size_t crossings_left = 0;
-
-  std::size_t sliver_collapses = 0;
-  std::size_t slivers_left = 0;  // slivers no checked collapse could remove
-
-  std::size_t triangles_before = 0;
-  std::size_t triangles_after = 0;
+  std::size_t triangles_before = 0;  // marching cubes' triangles and vertices
   std::size_t vertices_before = 0;
+  std::size_t triangles_after = 0;
   std::size_t vertices_after = 0;
+  // Disks merged, by their box's edge: 1 (layers and rows of a 2-block), 2, 4, 8, 16, 32.
+  std::array<std::size_t, 6> blocks_merged{};
+  // Components not merged (each one tried counts once), by the test that failed.
+  std::size_t rejected_topology = 0;       // not one disk with one loop
+  std::size_t rejected_facing = 0;         // a triangle faces away from the mean normal
+  std::size_t rejected_flatness = 0;       // thicker than epsilon
+  std::size_t rejected_outline = 0;        // the projected loop is not simple
+  std::size_t rejected_separation = 0;     // no plane parts it from another component
+  // Merged blocks whose loop could not be triangulated (no valid ear left) or not with fewer
+  // triangles than marching cubes: their cubes keep marching cubes' triangles.
+  std::size_t blocks_demoted = 0;
+  // Loop vertices inside faces two merged blocks share that were thinned away, those given
+  // back because a block could not be triangulated without them, and the passes that took.
+  std::size_t face_vertices_removed = 0;
+  std::size_t face_vertices_restored = 0;
+  std::size_t triangulation_passes = 0;
+
+  MergeStats& operator+=(const MergeStats& part);
 };
 
-// Merges `mesh` in place, serially in scan order, and compacts it (unused vertices dropped,
-// the rest renumbered in their original order, triangles kept in their original order).
-// Preconditions: `mesh` and `cubes` come from one extract_isosurface call (cubes = its
-// ExtractOptions::cubes output) and have not been modified;
-// options.run_cap >= 1; options.epsilon_voxels >= 0.
-void merge_types(TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-                 const MergeOptions& options = {}, MergeStats* stats = nullptr);
-
-// extract_isosurface followed by merge_types, streamed in pieces of options.slab_layers cube
-// layers (see Streaming above). `extract.cubes` is ignored; `extract.stats` receives the
-// ambiguity statistics of the whole surface. Runs on the larger of options.threads and
-// extract.threads; the output does not depend on it.
+// Extracts the iso-surface of `volume` (as extract_isosurface) merged as described above.
+// `extract.cubes` is ignored; `extract.stats` receives the ambiguity counts. Runs on the
+// larger of options.threads and extract.threads; the output does not depend on it.
+// Throws std::invalid_argument unless block_cubes is a power of two >= 2, epsilon_voxels
+// >= 0 and extract.mode is consistent (classic mode's holes are not loops on box faces).
 TriangleMesh extract_type_merged(const Volume& volume, float iso,
-                                 const ExtractOptions& extract = {},
-                                 const MergeOptions& options = {}, MergeStats* stats = nullptr);
-
-namespace detail {
-
-// Squared distance from point p to triangle (a, b, c) (Ericson, Real-Time Collision
-// Detection §5.1.5); correct for degenerate triangles too.
-double point_triangle_distance_squared(const std::array<double, 3>& p,
-                                       const std::array<double, 3>& a,
-                                       const std::array<double, 3>& b,
-                                       const std::array<double, 3>& c);
-
-}  // namespace detail
+                                  const ExtractOptions& extract = {},
+                                  const MergeOptions& options = {},
+                                  MergeStats* stats = nullptr);
 
 }  // namespace typemerge::core

@@ -2,7 +2,7 @@
 // the slide geometry; the generated type table against Appendix A; and the property that
 // defines the type table: on a plane containing d, a cube whose index lists d repeats at C + d;
 // the type-3 blocks against spec §3.4 and against random planes.
-#include "core/type_merging_tables.h"
+#include "type_merging_tables.h"
 
 #include <gtest/gtest.h>
 
