@@ -20,7 +20,10 @@
 // counts the cut x-edges — the first pass of flying edges and of ours, which any extractor
 // must make, i.e. a floor for the time of any surface extraction (no triangles).
 // The same volume can be written as NRRD for bench/vtk_extract.py, so that VTK's filters run on
-// identical samples.
+// identical samples; --vtk does that itself (int16 samples where the volume is integral, as
+// VTK would read a CT) and prints, per iso, mc and tm on one thread against
+// vtkFlyingEdges3D on one thread, and tm's two-thread speed-up, all from this one run
+// (needs python3-vtk9 and python3-numpy; --vtk-python to choose the interpreter).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -28,6 +31,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <numbers>
 #include <sstream>
 #include <string>
@@ -126,6 +130,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
                "       [--algorithms mc,classic,tm,classify] [--threads 1,2] [--repeat 5]\n"
+               "       [--vtk] [--vtk-python /usr/bin/python3]\n"
                "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
   return 2;
 }
@@ -133,18 +138,27 @@ int usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::string vtk_python = "/usr/bin/python3";
+  bool vtk = false;
   std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
               thread_list = "1", spacing = "refuse";
   int repeat = 5;
   unsigned slab_layers = core::MergeOptions{}.slab_layers;
-  for (int a = 1; a + 1 < argc; a += 2) {
-    const std::string key = argv[a], value = argv[a + 1];
+  for (int a = 1; a < argc; ++a) {
+    const std::string key = argv[a];
+    if (key == "--vtk") {
+      vtk = true;
+      continue;
+    }
+    if (a + 1 >= argc) return usage();
+    const std::string value = argv[++a];
     if (key == "--series") series_dir = value;
     else if (key == "--synthetic") synthetic = value;
     else if (key == "--iso") iso_list = value;
     else if (key == "--algorithms") algorithms = value;
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else if (key == "--write-nrrd") nrrd_out = value;
+    else if (key == "--vtk-python") vtk_python = value;
     else if (key == "--threads") thread_list = value;
     else if (key == "--spacing") spacing = value;
     else if (key == "--slab-layers") slab_layers = static_cast<unsigned>(std::stoul(value));
@@ -171,7 +185,19 @@ int main(int argc, char** argv) {
     volume = bench::synthetic_volume(nx, ny, nz);
     name = "synthetic " + synthetic;
   }
-  if (!nrrd_out.empty()) io::write_nrrd(volume, nrrd_out, io::NrrdSampleType::float32);
+  if (vtk && nrrd_out.empty()) nrrd_out = "/tmp/extract_bench_vtk.nrrd";
+  if (!nrrd_out.empty()) {
+    // int16 where every sample is an integer in range (a CT as VTK would read it).
+    const bool integral = std::all_of(volume.samples().begin(), volume.samples().end(),
+                                      [](float v) {
+                                        return v == std::floor(v) && v >= -32768.0f &&
+                                               v <= 32767.0f;
+                                      });
+    io::write_nrrd(volume, nrrd_out,
+                   integral ? io::NrrdSampleType::int16 : io::NrrdSampleType::float32);
+  }
+  // Per iso: one-thread mc and tm, two-thread tm (ms), for the ratios to VTK.
+  std::map<std::string, std::array<double, 3>> figures;
   const auto& size = volume.size();
   const double cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
   std::printf("volume: %s, %lldx%lldx%lld (%.1f M cells, %.0f MiB of samples)\n", name.c_str(),
@@ -228,6 +254,10 @@ int main(int argc, char** argv) {
           times.push_back(std::chrono::duration<double, std::milli>(end - start).count());
         }
         const double median = median_ms(times);
+        if (thread_text == "1" && (algorithm == "mc" || merged)) {
+          figures[iso_text][merged ? 1 : 0] = median;
+        }
+        if (thread_text == "2" && merged) figures[iso_text][2] = median;
         const core::MeshCheck check = core::check_mesh(mesh);
         std::printf("%-8s %-8s %3s %10.1f %10.1f %11zu %10zu %10.1f %9zu %9zu %9zu\n",
                     iso_text.c_str(), algorithm.c_str(), thread_text.c_str(), median,
@@ -294,6 +324,35 @@ int main(int argc, char** argv) {
                       f.face_vertices_restored, f.triangulation_passes);
         }
       }
+    }
+  }
+  if (vtk) {
+    const std::string command = vtk_python + " " + TYPEMERGE_BENCH_SOURCE_DIR +
+                                "/vtk_extract.py " + nrrd_out + " --iso=" + iso_list +
+                                " --repeat " + std::to_string(repeat) + " --no-defects";
+    std::printf("VTK, same samples, one thread (%s):\n", command.c_str());
+    std::fflush(stdout);
+    FILE* pipe = ::popen(command.c_str(), "r");
+    std::map<double, double> flying_edges;  // iso → ms
+    char line[512];
+    while (pipe != nullptr && std::fgets(line, sizeof line, pipe) != nullptr) {
+      std::printf("    vtk| %s", line);
+      char filter[64];
+      double iso = 0.0, ms = 0.0;
+      if (std::sscanf(line, "%lf %63s %lf", &iso, filter, &ms) == 3 &&
+          std::strcmp(filter, "flying_edges") == 0) {
+        flying_edges[iso] = ms;
+      }
+    }
+    if (pipe == nullptr || ::pclose(pipe) != 0) std::printf("    (vtk_extract.py failed)\n");
+    std::printf("%-8s %10s %10s %10s %10s %10s %12s\n", "iso", "FE ms", "mc ms", "tm ms",
+                "mc/FE", "tm/FE", "tm 1thr/2thr");
+    for (const auto& [iso_text, f] : figures) {
+      const auto fe = flying_edges.find(std::stod(iso_text));
+      if (fe == flying_edges.end()) continue;
+      std::printf("%-8s %10.1f %10.1f %10.1f %10.2f %10.2f %12.2f\n", iso_text.c_str(),
+                  fe->second, f[0], f[1], f[0] / fe->second, f[1] / fe->second,
+                  f[2] > 0 ? f[1] / f[2] : 0.0);
     }
   }
   return 0;

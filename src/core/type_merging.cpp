@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <limits>
 #include <span>
+#include <utility>
 #include <stdexcept>
 #include <vector>
 
@@ -163,41 +164,40 @@ class PieceMerger {
     }
   }
 
-  // Tests the block bottom up: its eight halves first (down to 2 × 2 × 2, whose cubes keep
-  // their marching-cubes triangles when it fails), then, when every half that has cubes
-  // merged, the block itself, which replaces them if it passes. (Top down, most triangles
-  // were tested at every size: 2.5× the time for about 1 % fewer triangles.) Returns whether
-  // the block's cubes all belong to merged blocks.
+  // The two halves of a box two cubes thick along `axis`, with their cubes (reordered so
+  // that the low half's come first, stably).
+  std::array<std::pair<std::span<std::uint32_t>, Box>, 2> halves(std::span<std::uint32_t> cubes,
+                                                                const Box& box, int axis) {
+    const auto mid = std::stable_partition(cubes.begin(), cubes.end(), [&](std::uint32_t c) {
+      const BoundaryCube& cube = cubes_[c];
+      return (axis == 0 ? cube.x : axis == 1 ? cube.y : cube.z) == box.lo[axis];
+    });
+    const auto split = static_cast<std::size_t>(mid - cubes.begin());
+    std::array<std::pair<std::span<std::uint32_t>, Box>, 2> out{
+        {{cubes.subspan(0, split), box}, {cubes.subspan(split), box}}};
+    for (int k = 0; k < 2; ++k) {
+      Box& half = out[k].second;
+      half.lo[axis] = box.lo[axis] + k;
+      half.hi[axis] = std::min(half.lo[axis] + 1, box.hi[axis]);
+    }
+    return out;
+  }
+
+  // Tests the block bottom up: its eight halves first (down to 2 × 2 × 2, which tries its
+  // layers and rows where it fails), then, when every half that has cubes merged, the block
+  // itself, which replaces them if it passes. (Top down, largest block first, tests most
+  // triangles at every size: abdomen, one run, 1.05–1.17× the time for the same reduction
+  // within 0.1 point.) Returns whether the block's cubes all belong to merged disks.
   bool test_block(std::span<std::uint32_t> cubes, const Box& box, std::int32_t size) {
     if (cubes.empty()) return true;
     if (size <= 2) {
       if (try_merge(cubes, box, size, /*emit_failures=*/false)) return true;
-      // Its two layers alone (2 × 2 × 1): thinner along z, where slices are often thicker.
-      const auto mid = std::stable_partition(cubes.begin(), cubes.end(), [&](std::uint32_t c) {
-        return cubes_[c].z == box.lo[2];
-      });
-      const auto split = static_cast<std::size_t>(mid - cubes.begin());
-      for (int k = 0; k < 2; ++k) {
-        const std::span<std::uint32_t> layer =
-            k == 0 ? cubes.subspan(0, split) : cubes.subspan(split);
-        if (layer.empty()) continue;
-        Box thin = box;
-        thin.lo[2] = box.lo[2] + k;
-        thin.hi[2] = std::min(thin.lo[2] + 1, box.hi[2]);
-        if (try_merge(layer, thin, 1, /*emit_failures=*/false)) continue;
-        // Its two rows alone (2 × 1 × 1).
-        const auto row_mid = std::stable_partition(layer.begin(), layer.end(), [&](std::uint32_t c) {
-          return cubes_[c].y == box.lo[1];
-        });
-        const auto row_split = static_cast<std::size_t>(row_mid - layer.begin());
-        for (int r = 0; r < 2; ++r) {
-          const std::span<std::uint32_t> row =
-              r == 0 ? layer.subspan(0, row_split) : layer.subspan(row_split);
-          if (row.empty()) continue;
-          Box narrow = thin;
-          narrow.lo[1] = box.lo[1] + r;
-          narrow.hi[1] = std::min(narrow.lo[1] + 1, box.hi[1]);
-          try_merge(row, narrow, 1, /*emit_failures=*/true);
+      // Its two layers alone (2 × 2 × 1): thinner along z, where slices are often thicker;
+      // where a layer fails, its two rows (2 × 1 × 1).
+      for (const auto& [layer, thin] : halves(cubes, box, 2)) {
+        if (layer.empty() || try_merge(layer, thin, 1, /*emit_failures=*/false)) continue;
+        for (const auto& [row, narrow] : halves(layer, thin, 1)) {
+          if (!row.empty()) try_merge(row, narrow, 1, /*emit_failures=*/true);
         }
       }
       return false;

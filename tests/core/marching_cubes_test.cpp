@@ -23,6 +23,7 @@ namespace {
 
 using test::noise_volume;
 using test::sample_volume;
+using test::set_cube;
 using test::sphere_volume;
 
 constexpr ExtractOptions kOpen{.close_borders = false};
@@ -241,19 +242,6 @@ TEST(MarchingCubes, EmptyAndTrivialVolumes) {
   const MeshCheck slab = check_mesh(extract_isosurface(flat, -1.0f, kClosed));
   EXPECT_TRUE(slab.closed_manifold());
   EXPECT_EQ(slab.euler_characteristic, 2);
-}
-
-// Values for cube index c on the 8 corners of the cube at `origin`: inside in [iso, iso+1),
-// outside in [iso−1, iso). Exactly iso is allowed (tie rule) and tested elsewhere.
-void set_cube(Volume& volume, unsigned c, std::int64_t x0, std::int64_t y0, std::int64_t z0,
-              std::mt19937& rng) {
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (int v = 0; v < 8; ++v) {
-    const auto& o = kCubeVertexOffset[v];
-    const float magnitude = u(rng);
-    volume.at(x0 + o[0], y0 + o[1], z0 + o[2]) =
-        ((c >> v) & 1u) ? magnitude : -std::max(magnitude, 1e-6f);
-  }
 }
 
 TEST(MarchingCubes, AllConfigurationsOfOneCubeAreClosedSpheres) {

@@ -30,7 +30,16 @@ namespace {
 
 using test::noise_volume;
 using test::sample_volume;
+using test::set_cube;
 using test::sphere_volume;
+
+// Under the sanitizers (CI's second build) the same checks on fewer and coarser cases: the
+// point is memory and undefined behaviour there, and every check runs 20–70× slower.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kSanitized = true;
+#else
+constexpr bool kSanitized = false;
+#endif
 
 constexpr ExtractOptions kOpen{.close_borders = false};
 constexpr ExtractOptions kClosed{.close_borders = true};
@@ -53,9 +62,10 @@ double ratio(const Extracted& e) {
   return static_cast<double>(e.tm.triangles.size()) / static_cast<double>(e.mc.triangles.size());
 }
 
-// Hausdorff distance between the two surfaces, sampled every 0.2 voxel over both.
+// Hausdorff distance between the two surfaces, sampled every 0.2 voxel over both (0.5
+// under the sanitizers).
 double sampled_hausdorff(const Extracted& e) {
-  return surface_distance(e.mc, e.tm, 0.2, 1).hausdorff();
+  return surface_distance(e.mc, e.tm, kSanitized ? 0.5 : 0.2, 1).hausdorff();
 }
 
 // What the merge keeps, for closed or open marching-cubes meshes.
@@ -81,9 +91,9 @@ void expect_same_topology(const Extracted& e) {
   for (const auto& p : e.tm.positions) {
     ASSERT_TRUE(std::binary_search(mc_positions.begin(), mc_positions.end(), p));
   }
-  // No two triangles cross (exact predicates), as in marching cubes.
+  // No two triangles cross (exact predicates), as in marching cubes (whose own tests check
+  // it).
   EXPECT_TRUE(find_self_intersections(e.tm).pairs.empty());
-  EXPECT_TRUE(find_self_intersections(e.mc).pairs.empty());
 }
 
 void expect_within_epsilon(const Extracted& e, double epsilon) {
@@ -95,17 +105,6 @@ void expect_within_epsilon(const Extracted& e, double epsilon) {
 
 // ---- Every configuration --------------------------------------------------------------------
 
-void set_cube(Volume& volume, unsigned c, std::int64_t x0, std::int64_t y0, std::int64_t z0,
-              std::mt19937& rng) {
-  std::uniform_real_distribution<float> u(0.0f, 1.0f);
-  for (int v = 0; v < 8; ++v) {
-    const auto& o = kCubeVertexOffset[v];
-    const float magnitude = u(rng);
-    volume.at(x0 + o[0], y0 + o[1], z0 + o[2]) =
-        ((c >> v) & 1u) ? magnitude : -std::max(magnitude, 1e-6f);
-  }
-}
-
 // Each of the 256 cube indices alone (closed off: a block of the closed borders' padding
 // around it) and in random 4×4×4 neighbourhoods, where blocks of two and four cubes see it
 // beside everything else.
@@ -113,7 +112,7 @@ TEST(TypeMerging, AllConfigurationsAloneAndInRandomNeighbourhoods) {
   std::mt19937 rng(3);
   std::size_t merged = 0;
   for (unsigned c = 0; c < 256; ++c) {
-    for (int trial = 0; trial < 2; ++trial) {
+    for (int trial = 0; trial < (kSanitized ? 1 : 2); ++trial) {
       SCOPED_TRACE(testing::Message() << "index " << c << " trial " << trial);
       Volume alone({2, 2, 2}, {});
       set_cube(alone, c, 0, 0, 0, rng);
@@ -126,6 +125,7 @@ TEST(TypeMerging, AllConfigurationsAloneAndInRandomNeighbourhoods) {
       for (float& v : around.samples()) v -= 0.5f;
       set_cube(around, c, 1, 1, 1, rng);
       for (const ExtractOptions& extract : {kClosed, kOpen}) {
+        if (kSanitized && !extract.close_borders) continue;
         const Extracted e = extract_both(around, 0.0f, extract);
         expect_same_topology(e);
         expect_within_epsilon(e, 0.5);
@@ -205,7 +205,9 @@ void check_smooth_closed(const char* name, const Volume& volume, std::int64_t ch
 
 TEST(TypeMerging, SpheresKeepTopologyAndStayWithinEpsilon) {
   check_smooth_closed("sphere R=10.3", sphere_volume(26, 10.3, 12.4, 12.7, 12.2), 2, 0.45);
-  check_smooth_closed("sphere R=20.3", sphere_volume(46, 20.3, 22.4, 22.7, 22.2), 2, 0.3);
+  if (!kSanitized) {
+    check_smooth_closed("sphere R=20.3", sphere_volume(46, 20.3, 22.4, 22.7, 22.2), 2, 0.3);
+  }
 }
 
 TEST(TypeMerging, TorusKeepsTopology) {
@@ -250,7 +252,7 @@ TEST(TypeMerging, SphereHasNoFoldedTriangles) {
 // ---- Noise and blobs --------------------------------------------------------------------------
 
 TEST(TypeMerging, NoiseStaysWatertightAndManifold) {
-  for (unsigned seed = 1; seed <= 12; ++seed) {
+  for (unsigned seed = 1; seed <= (kSanitized ? 3u : 12u); ++seed) {
     SCOPED_TRACE(seed);
     const Volume volume = noise_volume(11, 10, 9, seed);
     for (const ExtractOptions& extract : {kClosed, kOpen}) {
@@ -288,7 +290,7 @@ Volume blob_volume(unsigned seed, double iso_shift) {
 }
 
 TEST(TypeMerging, BlobsStayWatertightAndManifold) {
-  for (unsigned seed = 1; seed <= 10; ++seed) {
+  for (unsigned seed = 1; seed <= (kSanitized ? 3u : 10u); ++seed) {
     SCOPED_TRACE(seed);
     const Extracted e = extract_both(blob_volume(seed, 0.4), 0.0f, kClosed);
     expect_same_topology(e);
@@ -350,7 +352,7 @@ std::vector<Volume> piece_test_volumes() {
 // for any thread count. Pieces of one layer are the extreme case: every vertex is on a seam.
 TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
   const std::vector<Volume> volumes = piece_test_volumes();
-  for (std::size_t i = 0; i < volumes.size(); ++i) {
+  for (std::size_t i = 0; i < volumes.size(); i += kSanitized ? 2 : 1) {
     SCOPED_TRACE(i);
     AmbiguityStats mc_ambiguity;
     ExtractOptions extract = kClosed;
@@ -399,7 +401,8 @@ TEST(TypeMerging, PiecesKeepOpenBorders) {
 
 // Larger blocks may merge more, never less validly; blocks of two are the finest octree.
 TEST(TypeMerging, BlockSizesKeepTheGuarantees) {
-  const Volume volume = sphere_volume(46, 20.3, 22.4, 22.7, 22.2);
+  const Volume volume = kSanitized ? sphere_volume(26, 10.3, 12.4, 12.7, 12.2)
+                                   : sphere_volume(46, 20.3, 22.4, 22.7, 22.2);
   std::size_t previous = 0;
   for (unsigned block : {2u, 4u, 8u, 16u}) {
     SCOPED_TRACE(block);
