@@ -821,6 +821,7 @@ class PieceMerger {
   // Triangulates the projected loop by clipping, each time, the valid ear of best shape.
   bool clip_ears(std::span<const VertexId> loop, std::vector<Triangle>& out) {
     const auto n = static_cast<std::uint32_t>(loop.size());
+    ears_.clear();
     prev_.resize(n);
     succ_.resize(n);
     score_.resize(n);
@@ -846,7 +847,7 @@ class PieceMerger {
       if (best == kNone) return false;
       const std::uint32_t a = prev_[best];
       const std::uint32_t c = succ_[best];
-      out.push_back({loop[a], loop[best], loop[c]});
+      ears_.push_back({a, best, c});
       if (left == 3) break;
       succ_[a] = c;
       prev_[c] = a;
@@ -854,7 +855,59 @@ class PieceMerger {
       score_ear(a);
       score_ear(c);
     }
+    flip_for_shape(loop);
+    for (const auto& t : ears_) out.push_back({loop[t[0]], loop[t[1]], loop[t[2]]});
     return true;
+  }
+
+  // Lawson flips on the triangulation in ears_ (loop positions): an inner edge whose quad
+  // is convex in the projection is replaced by the other diagonal when that raises the
+  // pair's smallest angle, and the new edge joins no two vertices on one face of the box.
+  // The result is still a triangulation of the projected loop, so every guarantee holds;
+  // greedy clipping alone leaves needles beside short loop edges.
+  void flip_for_shape(std::span<const VertexId> loop) {
+    const std::size_t count = ears_.size();
+    if (count < 2) return;
+    // The triangle across each edge (ears_[t][k], ears_[t][k + 1]), by a quadratic search
+    // (a few to a few dozen triangles).
+    for (int round = 0; round < 4; ++round) {
+      bool flipped = false;
+      for (std::size_t t = 0; t < count; ++t) {
+        for (int k = 0; k < 3; ++k) {
+          const std::uint32_t a = ears_[t][k];
+          const std::uint32_t b = ears_[t][(k + 1) % 3];
+          const std::uint32_t c = ears_[t][(k + 2) % 3];
+          std::size_t u = count;
+          std::uint32_t d = kNone;
+          for (std::size_t o = 0; o < count && u == count; ++o) {
+            if (o == t) continue;
+            for (int j = 0; j < 3; ++j) {
+              if (ears_[o][j] == b && ears_[o][(j + 1) % 3] == a) {
+                u = o;
+                d = ears_[o][(j + 2) % 3];
+                break;
+              }
+            }
+          }
+          if (u == count) continue;  // a loop edge
+          if ((flat_masks_[c] & flat_masks_[d]) != 0) continue;
+          // Quad a, d, b, c (counter-clockwise): the new triangles (a, d, c) and (d, b, c).
+          if (!(orient2d(flat_[a], flat_[d], flat_[c]) > kMinDoubleArea) ||
+              !(orient2d(flat_[d], flat_[b], flat_[c]) > kMinDoubleArea)) {
+            continue;
+          }
+          const double before = std::min(shape(loop[a], loop[b], loop[c]),
+                                          shape(loop[b], loop[a], loop[d]));
+          const double after = std::min(shape(loop[a], loop[d], loop[c]),
+                                         shape(loop[d], loop[b], loop[c]));
+          if (!(after > before * (1.0 + 1e-9) + 1e-12)) continue;
+          ears_[t] = {a, d, c};
+          ears_[u] = {d, b, c};
+          flipped = true;
+        }
+      }
+      if (!flipped) break;
+    }
   }
 
   // A marching-cubes triangle of the block, by block-local corners, with its area vector.
@@ -908,6 +961,7 @@ class PieceMerger {
   std::vector<std::uint32_t> prev_;
   std::vector<std::uint32_t> succ_;
   std::vector<double> score_;
+  std::vector<std::array<std::uint32_t, 3>> ears_;  // clipped triangles, by loop position
   std::vector<std::uint32_t> scratch_order_;
   std::vector<Triangle> out_;
 };
