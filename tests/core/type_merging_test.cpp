@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -399,11 +400,13 @@ TEST(TypeMerging, PiecesKeepOpenBorders) {
   }
 }
 
-// Larger blocks may merge more, never less validly; blocks of two are the finest octree.
+// Every block size keeps the guarantees, and the blocks of the largest size do get merged
+// (boxes of that size pass on a smooth sphere). Larger blocks usually, not always, give fewer
+// triangles: a block that replaces its halves is not compared with them (measured: the R = 10.3
+// sphere 988 triangles with blocks of 4, 996 with blocks of 8).
 TEST(TypeMerging, BlockSizesKeepTheGuarantees) {
   const Volume volume = kSanitized ? sphere_volume(26, 10.3, 12.4, 12.7, 12.2)
                                    : sphere_volume(46, 20.3, 22.4, 22.7, 22.2);
-  std::size_t previous = 0;
   for (unsigned block : {2u, 4u, 8u, 16u}) {
     SCOPED_TRACE(block);
     MergeOptions options;
@@ -411,10 +414,14 @@ TEST(TypeMerging, BlockSizesKeepTheGuarantees) {
     const Extracted e = extract_both(volume, 0.0f, kClosed, options);
     expect_same_topology(e);
     expect_within_epsilon(e, options.epsilon_voxels);
-    if (previous != 0) {
-      EXPECT_LE(e.tm.triangles.size(), previous);
+    std::size_t largest = 0;
+    for (std::size_t k = 0; k < e.stats.blocks_merged.size(); ++k) {
+      if (e.stats.blocks_merged[k] > 0) largest = k;
     }
-    previous = e.tm.triangles.size();
+    EXPECT_EQ(std::size_t{1} << largest, std::min(block, 8u));  // no 16-block is that flat
+    for (std::size_t k = std::bit_width(block); k < e.stats.blocks_merged.size(); ++k) {
+      EXPECT_EQ(e.stats.blocks_merged[k], 0u);
+    }
   }
 }
 
