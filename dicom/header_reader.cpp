@@ -14,6 +14,7 @@
 #include <mutex>
 #include <cctype>
 #include <cstdio>
+#include <cstring>
 #include <optional>
 
 #include "dicom/decimal_string.h"
@@ -180,6 +181,43 @@ void check_value_lengths(DcmFileFormat& format, std::uint64_t file_bytes, bool d
   }
 }
 
+// Whether a file is DICOM at all, before any parsing: the DICM magic after the 128-byte
+// preamble (PS3.10 §7.1), or, for data sets written without it (old ACR-NEMA style files,
+// some exporters), a first element of the command, meta or identifying group (0000, 0002,
+// 0008; little or big endian) followed by a valid VR (explicit) or by a length the file can
+// hold (implicit). Text files (README, LICENSE, notes) start with letters: their first four
+// bytes read as an element of a private group such as (2023,6173) "# ty", which DCMTK would
+// report as a damaged data set; they are simply not DICOM.
+bool starts_like_dicom(const std::filesystem::path& file, std::uint64_t file_bytes) {
+  unsigned char head[132] = {};
+  std::FILE* in = std::fopen(file.c_str(), "rb");
+  if (in == nullptr) return true;  // let the reader report why it cannot open the file
+  const std::size_t got = std::fread(head, 1, sizeof head, in);
+  std::fclose(in);
+  if (got >= 132 && std::memcmp(head + 128, "DICM", 4) == 0) return true;
+  if (got < 8) return false;
+  const unsigned little = head[0] | (head[1] << 8);
+  const unsigned big = (head[0] << 8) | head[1];
+  auto first_group = [](unsigned g) { return g == 0x0000 || g == 0x0002 || g == 0x0008; };
+  if (!first_group(little) && !first_group(big)) return false;
+  static constexpr const char* kVrs[] = {"AE", "AS", "AT", "CS", "DA", "DS", "DT", "FD", "FL",
+                                         "IS", "LO", "LT", "OB", "OD", "OF", "OL", "OV", "OW",
+                                         "PN", "SH", "SL", "SQ", "SS", "ST", "SV", "TM", "UC",
+                                         "UI", "UL", "UN", "UR", "US", "UT", "UV"};
+  for (const char* vr : kVrs) {
+    if (head[4] == static_cast<unsigned char>(vr[0]) &&
+        head[5] == static_cast<unsigned char>(vr[1])) {
+      return true;
+    }
+  }
+  const std::uint64_t length_little = std::uint64_t{head[4]} | std::uint64_t{head[5]} << 8 |
+                                      std::uint64_t{head[6]} << 16 | std::uint64_t{head[7]} << 24;
+  const std::uint64_t length_big = std::uint64_t{head[7]} | std::uint64_t{head[6]} << 8 |
+                                   std::uint64_t{head[5]} << 16 | std::uint64_t{head[4]} << 24;
+  return (first_group(little) && length_little + 8 <= file_bytes) ||
+         (first_group(big) && length_big + 8 <= file_bytes);
+}
+
 std::uint64_t file_size_or_zero(const std::filesystem::path& file) {
   std::error_code error;
   const auto size = std::filesystem::file_size(file, error);
@@ -189,6 +227,10 @@ std::uint64_t file_size_or_zero(const std::filesystem::path& file) {
 // Fills `result` step by step; the kind set before a refusal is the file's classification.
 void read_headers_or_throw(const std::filesystem::path& file, const HeaderReadOptions& options,
                            HeaderReadResult& result) {
+  if (!starts_like_dicom(file, file_size_or_zero(file))) {
+    result.kind = FileKind::not_dicom;
+    throw Refusal{"not a DICOM file (no DICM magic, and it does not start with a DICOM element)"};
+  }
   const NestingReport nesting = prescan_nesting(file);
   if (!nesting.error.empty()) {
     result.kind = FileKind::unreadable;

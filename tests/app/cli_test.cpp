@@ -76,6 +76,15 @@ fs::path write_ball_series(const std::string& name) {
   return dir;
 }
 
+// The sample series folder holds a README.md: listed as not DICOM, not as a damaged file.
+TEST(Cli, InfoListsTextFilesAsNotDicom) {
+  const CommandRun r = run("info " + std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("x not DICOM: not a DICOM file"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("README.md"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("unreadable DICOM"), std::string::npos) << r.out;
+}
+
 TEST(Cli, InfoJsonDescribesTheSeriesWithoutPatientData) {
   const fs::path dir = write_ball_series("info");
   const CommandRun r = run("info --json " + dir.string());
