@@ -58,10 +58,10 @@ StepOutput component_details(const mesh::ComponentReport& report) {
 
 // Runs a finishing step that moves vertices; with `check` on, counts crossing pairs before
 // (once, cached in `crossings`) and after it. When the step added crossings: a step that kept
-// the triangles and only moved vertices (smoothing) is repaired by putting the vertices of every crossing triangle back where
-// they were, round after round (each round puts back at least one more vertex, and with all
-// of them back the surface is the one before the step, so it ends); a step that changed the
-// triangles is undone. A smoothed or reduced surface that slicers reject is worse than the
+// the triangles and only moved vertices (smoothing) is repaired by putting the vertices of
+// every crossing triangle back where they were, round after round (each round puts back at
+// least one more vertex, and with all of them back the surface is the one before the step,
+// so it ends); a step that changed the triangles is undone. A smoothed or reduced surface that slicers reject is worse than the
 // unsmoothed one.
 template <typename Step>
 void run_moving_step(SurfaceResult& result, const std::string& name, bool check,

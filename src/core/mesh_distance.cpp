@@ -24,16 +24,6 @@ P3 cross3(const P3& a, const P3& b) {
   return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
 }
 
-double point_segment_distance_squared(const P3& p, const P3& a, const P3& b) {
-  const P3 ab = sub(b, a);
-  const P3 ap = sub(p, a);
-  const double len2 = dot3(ab, ab);
-  double t = len2 > 0.0 ? dot3(ap, ab) / len2 : 0.0;
-  t = std::clamp(t, 0.0, 1.0);
-  const P3 q = {a[0] + t * ab[0] - p[0], a[1] + t * ab[1] - p[1], a[2] + t * ab[2] - p[2]};
-  return dot3(q, q);
-}
-
 P3 to_p3(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
 
 // Triangles of a mesh bucketed by the grid cells their bounding boxes overlap (CSR).
@@ -189,6 +179,16 @@ class TriangleGrid {
 }  // namespace
 
 namespace detail {
+
+double point_segment_distance_squared(const P3& p, const P3& a, const P3& b) {
+  const P3 ab = sub(b, a);
+  const P3 ap = sub(p, a);
+  const double len2 = dot3(ab, ab);
+  double t = len2 > 0.0 ? dot3(ap, ab) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  const P3 q = {a[0] + t * ab[0] - p[0], a[1] + t * ab[1] - p[1], a[2] + t * ab[2] - p[2]};
+  return dot3(q, q);
+}
 
 double point_triangle_distance_squared(const P3& p, const P3& a, const P3& b, const P3& c) {
   const P3 ab = sub(b, a);

@@ -60,6 +60,11 @@ SymmetricMeshDistance surface_distance(const TriangleMesh& a, const TriangleMesh
 
 namespace detail {
 
+// Squared distance from point p to segment [a, b] (a point when a == b).
+double point_segment_distance_squared(const std::array<double, 3>& p,
+                                      const std::array<double, 3>& a,
+                                      const std::array<double, 3>& b);
+
 // Squared distance from point p to triangle (a, b, c) (Ericson, Real-Time Collision
 // Detection §5.1.5); correct for degenerate triangles too.
 double point_triangle_distance_squared(const std::array<double, 3>& p,

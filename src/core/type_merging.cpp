@@ -13,6 +13,7 @@
 
 #include "core/parallel.h"
 #include "core/cube_tables.h"
+#include "core/mesh_distance.h"
 
 namespace typemerge::core {
 
@@ -170,11 +171,21 @@ class PieceMerger {
   // that the low half's come first, stably).
   std::array<std::pair<std::span<std::uint32_t>, Box>, 2> halves(std::span<std::uint32_t> cubes,
                                                                 const Box& box, int axis) {
-    const auto mid = std::stable_partition(cubes.begin(), cubes.end(), [&](std::uint32_t c) {
+    // A stable two-way partition through scratch_order_ (std::stable_partition would
+    // allocate a buffer at every failing block).
+    auto low = [&](std::uint32_t c) {
       const BoundaryCube& cube = cubes_[c];
       return (axis == 0 ? cube.x : axis == 1 ? cube.y : cube.z) == box.lo[axis];
-    });
-    const auto split = static_cast<std::size_t>(mid - cubes.begin());
+    };
+    scratch_order_.assign(cubes.begin(), cubes.end());
+    std::size_t split = 0;
+    for (std::uint32_t c : scratch_order_) {
+      if (low(c)) cubes[split++] = c;
+    }
+    std::size_t rest = split;
+    for (std::uint32_t c : scratch_order_) {
+      if (!low(c)) cubes[rest++] = c;
+    }
     std::array<std::pair<std::span<std::uint32_t>, Box>, 2> out{
         {{cubes.subspan(0, split), box}, {cubes.subspan(split), box}}};
     for (int k = 0; k < 2; ++k) {
@@ -400,10 +411,6 @@ class PieceMerger {
         ++stats_.rejected_facing;
       }
     }
-    for (Component& c : components_) {
-      if (c.ok) continue;
-      c.normal = {0, 0, 0};
-    }
     for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
       Component& c = components_[component_of_[v]];
       if (!c.ok) continue;
@@ -419,7 +426,6 @@ class PieceMerger {
     }
     // Separation: a disk whose slab does not leave some other component on one side stays.
     if (components_.size() > 1) {
-      for (Component& c : components_) c.side = 0;
       for (std::uint32_t i = 0; i < components_.size(); ++i) {
         Component& c = components_[i];
         if (!c.ok) continue;
@@ -536,15 +542,6 @@ class PieceMerger {
     return other;
   }
 
-  static double point_segment_distance(const P3& p, const P3& a, const P3& b) {
-    const P3 ab = sub(b, a);
-    const P3 ap = sub(p, a);
-    const double len = dot(ab, ab);
-    const double t = len > 0.0 ? std::clamp(dot(ap, ab) / len, 0.0, 1.0) : 0.0;
-    const P3 d = {ap[0] - t * ab[0], ap[1] - t * ab[1], ap[2] - t * ab[2]};
-    return std::sqrt(dot(d, d));
-  }
-
   // Whether two vertices lie on one lattice line (same edge axis, same other coordinates).
   bool on_one_lattice_line(VertexId u, VertexId w) const {
     const std::array<float, 3>& p = mesh_.positions[u];
@@ -566,7 +563,8 @@ class PieceMerger {
     std::size_t far = first;
     double far_distance = -1.0;
     for (std::size_t k = first + 1; k < last; ++k) {
-      const double d = point_segment_distance(to_double(mesh_.positions[run[k]]), a, b);
+      const double d = std::sqrt(
+          detail::point_segment_distance_squared(to_double(mesh_.positions[run[k]]), a, b));
       if (d > far_distance) {
         far_distance = d;
         far = k;
@@ -928,7 +926,6 @@ class PieceMerger {
     P3 normal{0, 0, 0};
     double low = std::numeric_limits<double>::max();
     double high = std::numeric_limits<double>::lowest();
-    unsigned side = 0;
     std::uint32_t disk = kNone;
     bool ok = true;
   };

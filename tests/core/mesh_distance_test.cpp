@@ -72,6 +72,21 @@ TEST(MeshDistance, SurfaceSamplesSeeInsideTriangles) {
   EXPECT_TRUE(points.triangles.empty());
 }
 
+TEST(MeshDistance, PointTriangleAndSegmentDistances) {
+  const std::array<double, 3> a{0, 0, 0};
+  const std::array<double, 3> b{2, 0, 0};
+  const std::array<double, 3> c{0, 2, 0};
+  EXPECT_DOUBLE_EQ(detail::point_triangle_distance_squared({0.5, 0.5, 3}, a, b, c), 9.0);
+  EXPECT_DOUBLE_EQ(detail::point_triangle_distance_squared({-1, 0, 0}, a, b, c), 1.0);
+  EXPECT_DOUBLE_EQ(detail::point_triangle_distance_squared({2, 2, 0}, a, b, c), 2.0);
+  EXPECT_DOUBLE_EQ(detail::point_triangle_distance_squared({3, 0, 1}, a, b, c), 2.0);
+  // Degenerate (collinear) triangle: distance to the segment.
+  EXPECT_DOUBLE_EQ(detail::point_triangle_distance_squared({1, 1, 0}, a, b, {1, 0, 0}), 1.0);
+  EXPECT_DOUBLE_EQ(detail::point_segment_distance_squared({1, 3, 0}, a, b), 9.0);
+  EXPECT_DOUBLE_EQ(detail::point_segment_distance_squared({4, 0, 0}, a, b), 4.0);
+  EXPECT_DOUBLE_EQ(detail::point_segment_distance_squared({0, 1, 0}, a, a), 1.0);  // a point
+}
+
 TEST(MeshDistance, EmptyMeshes) {
   TriangleMesh empty;
   TriangleMesh square;
