@@ -214,6 +214,8 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
   std::string transfer_syntax;
   std::optional<std::size_t> meta_end;
   bool meta_clean = true;
+  bool transfer_syntax_seen = false;
+  int previous_element = -1;  // elements ascend in a well-formed header (PS3.5 7.1)
   while (head.has(8) && (!meta_end || head.pos() < *meta_end)) {
     const std::size_t start = head.pos();
     const std::uint16_t group = head.u16(false);
@@ -223,7 +225,8 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
       break;
     }
     const std::string_view vr = head.chars(head.pos(), 2);
-    meta_clean = meta_clean && group == 0x0002 && looks_like_vr(vr);
+    meta_clean = meta_clean && group == 0x0002 && looks_like_vr(vr) && element > previous_element;
+    previous_element = element;
     head.skip(2);
     std::uint32_t length = 0;
     if (is_long_vr(vr)) {
@@ -238,7 +241,11 @@ NestingReport prescan_nesting(const std::filesystem::path& file, int max_depth) 
       if (head.has(group_length)) meta_end = head.pos() + group_length;  // else not trusted
       continue;
     }
-    if (group == 0x0002 && element == 0x0010 && head.has(length)) {
+    // DCMTK keeps the first of two equal tags and ignores the second (a fuzzed file named
+    // deflate first and another syntax second; taking the last walked compressed bytes as
+    // explicit VR and missed a 3.7 GB pixel value). Duplicates also make the header unclean.
+    if (group == 0x0002 && element == 0x0010 && head.has(length) && !transfer_syntax_seen) {
+      transfer_syntax_seen = true;
       transfer_syntax = std::string(head.chars(head.pos(), length));
       while (!transfer_syntax.empty() &&
              (transfer_syntax.back() == '\0' || transfer_syntax.back() == ' ')) {

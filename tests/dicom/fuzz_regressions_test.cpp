@@ -132,6 +132,41 @@ TEST(FuzzRegressions, DeflatedValueLongerThanTheDataSetIsRefusedBeforeParsing) {
   EXPECT_NE(read.skip_reason.find("declares"), std::string::npos) << read.skip_reason;
 }
 
+// fuzz_dicom_file, oom (found 2026-12-01): an 870-byte file whose meta header names the
+// transfer syntax twice, deflate first and explicit little endian second. DCMTK keeps the
+// first and inflates; the prescan took the second, walked the compressed bytes as explicit VR
+// and let through an inflated OB pixel value declaring 3,760,206,132 bytes (libFuzzer: malloc
+// in DcmPixelData::read from loadFile). Now the prescan keeps the first, like DCMTK, and a
+// meta header with a repeated or out-of-order element is not trusted before deflated data.
+TEST(FuzzRegressions, RepeatedTransferSyntaxInFrontOfDeflatedDataIsRefusedBeforeParsing) {
+  const std::string reproducer = from_hex(
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000000"
+    "00000000000000000000000000000000000000000000000000000000000000004449434d02000000554c0400b6000000"
+    "020001004f4200000200000000010200020055491a00312e322e3834302e31303030382e352e312e342e312e312e3200"
+    "0200030055492000312e322e3832362e302e312e333638303034332e31302e313233342e312e31000200100055491600"
+    "312e322e3834302e31303030382e312e322e312e39390200100055492000312e322e3832362e302e312e333638303034"
+    "332e31302e313233342e302e31000200130053481000545950454d455247455f4354575f31208d90cd6ed34014854f7e"
+    "688734a0694155c56a96d960cd386e091b54cb2dd8929309b62b5ac982a062b55db454c18866d557e892c760c923b0e4"
+    "1158b2e41138b6a5c0326359fae6dc7367ce5c018120dd864da257d1c48ff369128dfde424f78f233f16d8c651f404c6"
+    "719d91a71da3b51e39bb8e713cfe54d9bd43876a1cee9e438f33dc1b69ed0de9768c3bac9df4291cf8022e4fd0461b01"
+    "8d6cbc065d2f8129d21074cd98a68d2013b8466c1fa35c5c1797c5fcac50a7e5bb2ff38bb2982b813b4c27955bcbd84a"
+    "a48babf2bc282f4ed5a7f2f38705eb2fa8f7ffd3834c42b267eb9ff6767afefeaafc78a92493c5b687f4649285875914"
+    "50d17556f3bcc92ab15fa7b26a87390f4886342375615c4dc6eb801cbe4c95c28315e6e1f2ce872bf886f4f17d6175a3"
+    "c226a2b4a1ad253d5a92cb3c9c67ce8fbb67dcf561f27a9f9b5a4b56b8d1c3006d1cf1cc16a9cb77f731b6131b84891d"
+    "1fba6ac03c55b5cbeae69274338bdcb08e56a54aaaad9afad589356d903a358194c82aef53a35d8f5da96ce6faeb56c2"
+    "be01bc065d2f8129d21074cd98a68d2013b8466c1fa35c5c1797c5fcac50a7e5bb2ff38bb2982b813b4c27955bcbd84a"
+    "a48babf2bc282f4ed5a7f2f38705eb2fa8f7ffd3834c42b267eb9ff6767afefeaafc78a92493c5b687f4649285875914"
+    "50d17556f3bcc92ab15fa7b26a87390f4886342375df5dad1fb86b1db755e777e75bf7e6003000445304fe55ccee0f7a"
+    "7f7adf37fe02"
+  );
+  ASSERT_EQ(reproducer.size(), 870u);
+  const HeaderReadResult read =
+      read_refused("repeated_syntax_oom.dcm", reproducer, "refused before parsing");
+  EXPECT_NE(read.skip_reason.find("deflated"), std::string::npos) << read.skip_reason;
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+}
+
 // fuzz_dicom_file, oom-1987f38f…: the same in a 725-byte deflated file whose meta header
 // holds an element of another group inside the length its group length declares. DCMTK
 // starts the data set where that length ends; the prescan stopped at the foreign group,
