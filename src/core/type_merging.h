@@ -67,6 +67,8 @@
 
 #include <array>
 #include <cstddef>
+#include <cstdint>
+#include <vector>
 
 #include "core/marching_cubes.h"
 #include "core/mesh.h"
@@ -82,7 +84,9 @@ struct MergeOptions {
   // Largest block edge in cubes (a power of two >= 2). Larger blocks rarely pass on CT (few
   // 16-blocks are flat within half a voxel) and cost a test each.
   unsigned block_cubes = 8;
-  // Cube layers per piece (0 = one piece); blocks are aligned to the piece.
+  // Cube layers per piece on average (0 = one piece): about layers / slab_layers pieces, cut
+  // where the estimated surface below is equal (detail::piece_bounds); blocks are aligned to
+  // the piece.
   unsigned slab_layers = 32;
   // Pieces made at once; 0 = hardware concurrency.
   unsigned threads = 1;
@@ -122,5 +126,18 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso,
                                   const ExtractOptions& extract = {},
                                   const MergeOptions& options = {},
                                   MergeStats* stats = nullptr);
+
+namespace detail {
+
+// The pieces' cube layers: [bounds[k], bounds[k + 1]) for k < bounds.size() − 1, from 0 to
+// `layers` (empty when layers is 0), about layers / slab_layers of them, cut where the
+// surface estimated from the volume's samples is equal (so pieces cost about the same), on
+// multiples of block_cubes where pieces are at least two blocks high. `threads` only speeds
+// up the estimate: the bounds do not depend on it.
+std::vector<std::int64_t> piece_bounds(const Volume& volume, float iso,
+                                       const ExtractOptions& extract, const MergeOptions& options,
+                                       std::int64_t layers, unsigned threads);
+
+}  // namespace detail
 
 }  // namespace typemerge::core

@@ -387,6 +387,43 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
   }
 }
 
+// Pieces are cut where the estimated surface is equal: a volume whose surface is all in its
+// top quarter gets short pieces there and one tall piece below; cuts fall on block
+// multiples when pieces are tall; every layer is in exactly one piece; threads do not matter.
+TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
+  // 20 × 20 × 160 samples: a stack of thin plates (many surfaces) in slices 120..159 only.
+  const Volume volume = test::sample_volume(20, 20, 160, [](double x, double, double z) {
+    if (z < 120) return -1.0;
+    return std::fmod(z + 0.25 * x, 4.0) < 2.0 ? 1.0 : -1.0;
+  });
+  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
+  ASSERT_EQ(layers, 161);
+  MergeOptions options;
+  options.slab_layers = 32;
+  const std::vector<std::int64_t> bounds =
+      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
+  ASSERT_GE(bounds.size(), 3u);
+  EXPECT_EQ(bounds.front(), 0);
+  EXPECT_EQ(bounds.back(), layers);
+  EXPECT_EQ(bounds.size() - 1, 5u);  // round(161 / 32)
+  for (std::size_t k = 1; k + 1 < bounds.size(); ++k) {
+    EXPECT_LT(bounds[k - 1], bounds[k]);
+    EXPECT_EQ(bounds[k] % options.block_cubes, 0) << bounds[k];
+  }
+  // Equal heights would cut at 32, 64, 96, 128; the empty bottom is one piece here.
+  EXPECT_GE(bounds[1], 112);
+  EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 3), bounds);
+  // Pieces of one layer each, and one piece.
+  options.slab_layers = 1;
+  const std::vector<std::int64_t> single = detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 2);
+  ASSERT_EQ(single.size(), static_cast<std::size_t>(layers) + 1);
+  for (std::int64_t k = 0; k <= layers; ++k) EXPECT_EQ(single[static_cast<std::size_t>(k)], k);
+  options.slab_layers = 0;
+  EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1),
+            (std::vector<std::int64_t>{0, layers}));
+  EXPECT_TRUE(detail::piece_bounds(volume, 0.0f, kClosed, options, 0, 1).empty());
+}
+
 // Open borders across seams: boundaries stay exactly as marching cubes leaves them (the same
 // boundary edges; their vertices lie on block faces, so they stay).
 TEST(TypeMerging, PiecesKeepOpenBorders) {
