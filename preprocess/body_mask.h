@@ -17,7 +17,10 @@
 // Voxels denser than air (> air_threshold_hu) outside `keep` become air. A pad touching the
 // back is thereby cut to a fringe at most edge_mm thick along the contact.
 //
-// Memory: the volume and three byte masks; slices run in parallel.
+// Masks are run-length (preprocess/run_mask.h): a few runs per row, not a byte per voxel, so
+// the step costs per run and holds little beside the volume; slices run in parallel. The
+// byte-mask version it replaced, with OpenCV's morphology, is kept in the tests as the oracle
+// its output is compared with (tests/preprocess/body_mask_oracle.cpp).
 #pragma once
 
 #include <cstdint>

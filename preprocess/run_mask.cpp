@@ -1,0 +1,270 @@
+#include "preprocess/run_mask.h"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <numeric>
+#include <stdexcept>
+
+#include "core/union_find.h"
+
+namespace typemerge::preprocess::runs {
+namespace {
+
+// Appends [begin, end) to a row being built in `out` (runs in increasing order), joining it
+// to the last run when they overlap or touch.
+void append(std::vector<Run>& out, std::size_t row_first, std::int32_t begin, std::int32_t end) {
+  if (begin >= end) return;
+  if (out.size() > row_first && out.back().end >= begin) {
+    out.back().end = std::max(out.back().end, end);
+  } else {
+    out.push_back({begin, end});
+  }
+}
+
+// The intersection of two rows (sorted, disjoint runs), appended to `out`.
+void intersect_rows(const Run* a, const Run* a_end, const Run* b, const Run* b_end,
+                    std::vector<Run>& out) {
+  while (a != a_end && b != b_end) {
+    const std::int32_t begin = std::max(a->begin, b->begin);
+    const std::int32_t end = std::min(a->end, b->end);
+    if (begin < end) out.push_back({begin, end});
+    if (a->end < b->end) {
+      ++a;
+    } else {
+      ++b;
+    }
+  }
+}
+
+// The union of two rows, appended to `out` (a row of its own, starting at out.size()).
+void unite_rows(const Run* a, const Run* a_end, const Run* b, const Run* b_end,
+                std::vector<Run>& out) {
+  const std::size_t first = out.size();
+  while (a != a_end || b != b_end) {
+    const Run* next = b == b_end || (a != a_end && a->begin <= b->begin) ? a++ : b++;
+    append(out, first, next->begin, next->end);
+  }
+}
+
+}  // namespace
+
+std::uint64_t SliceRuns::count() const {
+  std::uint64_t n = 0;
+  for (const Run& r : runs) n += static_cast<std::uint64_t>(r.end - r.begin);
+  return n;
+}
+
+Kernel ellipse_kernel(int rx, int ry) {
+  const cv::Mat element =
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * rx + 1, 2 * ry + 1));
+  Kernel kernel;
+  for (int i = 0; i < element.rows; ++i) {
+    const std::uint8_t* row = element.ptr<std::uint8_t>(i);
+    int first = element.cols, last = -1;
+    for (int j = 0; j < element.cols; ++j) {
+      if (row[j] == 0) continue;
+      first = std::min(first, j);
+      last = j;
+    }
+    for (int j = first; j <= last; ++j) {
+      if (row[j] == 0) throw std::logic_error("structuring element row is not one interval");
+    }
+    kernel.left.push_back(first - rx);
+    kernel.right.push_back(last - rx);
+  }
+  return kernel;
+}
+
+SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t rows,
+                          float threshold) {
+  SliceRuns out;
+  out.cols = cols;
+  out.row_start.reserve(static_cast<std::size_t>(rows) + 1);
+  for (std::int32_t y = 0; y < rows; ++y) {
+    const float* row = values + static_cast<std::ptrdiff_t>(y) * cols;
+    bool inside = false;
+    std::int32_t begin = 0;
+    std::int32_t x = 0;
+    // Blocks of 16 that are all on the current side are skipped at once (most of a row is
+    // air or tissue); the comparisons of a block vectorise.
+    constexpr std::int32_t kBlock = 16;
+    while (x < cols) {
+      if (x + kBlock <= cols) {
+        int above = 0;
+        for (std::int32_t i = 0; i < kBlock; ++i) above += row[x + i] > threshold ? 1 : 0;
+        if (above == (inside ? kBlock : 0)) {
+          x += kBlock;
+          continue;
+        }
+      }
+      const std::int32_t stop = std::min(cols, x + kBlock);
+      for (; x < stop; ++x) {
+        const bool now = row[x] > threshold;
+        if (now == inside) continue;
+        if (now) {
+          begin = x;
+        } else {
+          out.runs.push_back({begin, x});
+        }
+        inside = now;
+      }
+    }
+    if (inside) out.runs.push_back({begin, cols});
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
+SliceRuns erode(const SliceRuns& in, const Kernel& kernel) {
+  SliceRuns out;
+  out.cols = in.cols;
+  const std::int32_t rows = in.rows();
+  const std::int32_t half = kernel.half_rows();
+  std::vector<Run> acc, shrunk, next;
+  for (std::int32_t y = 0; y < rows; ++y) {
+    // Outside the image counts as set (OpenCV's default border for erosion): rows beyond
+    // it add no condition, and a run touching the left or right edge is not shrunk there.
+    acc.assign(1, Run{0, in.cols});
+    for (std::int32_t i = 0; i < static_cast<std::int32_t>(kernel.left.size()) && !acc.empty();
+         ++i) {
+      const std::int32_t source = y + i - half;
+      if (source < 0 || source >= rows || kernel.left[i] > kernel.right[i]) continue;
+      shrunk.clear();
+      for (const Run* r = in.row_begin(source); r != in.row_end(source); ++r) {
+        const std::int32_t begin = r->begin == 0 ? 0 : r->begin - kernel.left[i];
+        const std::int32_t end = r->end == in.cols ? in.cols : r->end - kernel.right[i];
+        if (begin < end) shrunk.push_back({begin, end});
+      }
+      next.clear();
+      intersect_rows(acc.data(), acc.data() + acc.size(), shrunk.data(),
+                     shrunk.data() + shrunk.size(), next);
+      acc.swap(next);
+    }
+    out.runs.insert(out.runs.end(), acc.begin(), acc.end());
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
+SliceRuns dilate(const SliceRuns& in, const Kernel& kernel) {
+  SliceRuns out;
+  out.cols = in.cols;
+  const std::int32_t rows = in.rows();
+  const std::int32_t half = kernel.half_rows();
+  std::vector<Run> acc, grown, next;
+  for (std::int32_t y = 0; y < rows; ++y) {
+    // Outside the image counts as clear (OpenCV's default border for dilation).
+    acc.clear();
+    for (std::int32_t i = 0; i < static_cast<std::int32_t>(kernel.left.size()); ++i) {
+      const std::int32_t source = y + i - half;
+      if (source < 0 || source >= rows || kernel.left[i] > kernel.right[i]) continue;
+      if (in.row_begin(source) == in.row_end(source)) continue;
+      grown.clear();
+      for (const Run* r = in.row_begin(source); r != in.row_end(source); ++r) {
+        append(grown, 0, std::max(0, r->begin - kernel.right[i]),
+               std::min(in.cols, r->end - kernel.left[i]));
+      }
+      next.clear();
+      unite_rows(acc.data(), acc.data() + acc.size(), grown.data(), grown.data() + grown.size(),
+                 next);
+      acc.swap(next);
+    }
+    out.runs.insert(out.runs.end(), acc.begin(), acc.end());
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
+SliceRuns unite(const SliceRuns& a, const SliceRuns& b) {
+  SliceRuns out;
+  out.cols = a.cols;
+  for (std::int32_t y = 0; y < a.rows(); ++y) {
+    unite_rows(a.row_begin(y), a.row_end(y), b.row_begin(y), b.row_end(y), out.runs);
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
+SliceRuns intersect(const SliceRuns& a, const SliceRuns& b) {
+  SliceRuns out;
+  out.cols = a.cols;
+  for (std::int32_t y = 0; y < a.rows(); ++y) {
+    intersect_rows(a.row_begin(y), a.row_end(y), b.row_begin(y), b.row_end(y), out.runs);
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
+std::size_t keep_largest_component(std::vector<SliceRuns>& slices) {
+  // Runs are numbered slice after slice, row after row: the order in which an image scan
+  // meets them, so the smallest number of a component is where it is first met.
+  std::vector<std::uint32_t> first(slices.size() + 1, 0);
+  for (std::size_t k = 0; k < slices.size(); ++k) {
+    first[k + 1] = first[k] + static_cast<std::uint32_t>(slices[k].runs.size());
+  }
+  if (first.back() == 0) return 0;
+  std::vector<std::uint32_t> parent(first.back());
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto join = [&](std::uint32_t a, std::uint32_t b) {
+    a = core::find_root(parent, a);
+    b = core::find_root(parent, b);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  };
+  // Overlapping runs of two rows are 4-connected in the plane, or 6-connected across slices.
+  auto join_rows = [&](const SliceRuns& s, std::uint32_t s_first, std::int32_t sy,
+                       const SliceRuns& t, std::uint32_t t_first, std::int32_t ty) {
+    std::uint32_t i = s.row_start[sy], i_end = s.row_start[sy + 1];
+    std::uint32_t j = t.row_start[ty], j_end = t.row_start[ty + 1];
+    while (i < i_end && j < j_end) {
+      const Run& a = s.runs[i];
+      const Run& b = t.runs[j];
+      if (a.begin < b.end && b.begin < a.end) join(s_first + i, t_first + j);
+      if (a.end < b.end) {
+        ++i;
+      } else {
+        ++j;
+      }
+    }
+  };
+  for (std::size_t k = 0; k < slices.size(); ++k) {
+    const SliceRuns& s = slices[k];
+    for (std::int32_t y = 0; y + 1 < s.rows(); ++y) join_rows(s, first[k], y, s, first[k], y + 1);
+    if (k + 1 < slices.size()) {
+      for (std::int32_t y = 0; y < s.rows(); ++y) {
+        join_rows(s, first[k], y, slices[k + 1], first[k + 1], y);
+      }
+    }
+  }
+  std::vector<std::uint64_t> size(parent.size(), 0);
+  std::size_t components = 0;
+  for (std::size_t k = 0; k < slices.size(); ++k) {
+    for (std::size_t r = 0; r < slices[k].runs.size(); ++r) {
+      const auto id = static_cast<std::uint32_t>(first[k] + r);
+      const std::uint32_t root = core::find_root(parent, id);
+      if (root == id) ++components;
+      size[root] += static_cast<std::uint64_t>(slices[k].runs[r].end - slices[k].runs[r].begin);
+    }
+  }
+  std::uint32_t best = 0;
+  for (std::uint32_t g = 1; g < size.size(); ++g) {
+    if (size[g] > size[best]) best = g;
+  }
+  for (std::size_t k = 0; k < slices.size(); ++k) {
+    SliceRuns& s = slices[k];
+    std::uint32_t kept = 0;
+    std::uint32_t r = 0;
+    for (std::int32_t y = 0; y < s.rows(); ++y) {
+      const std::uint32_t end = s.row_start[y + 1];
+      s.row_start[y] = kept;
+      for (; r < end; ++r) {
+        if (core::find_root(parent, first[k] + r) == best) s.runs[kept++] = s.runs[r];
+      }
+    }
+    s.row_start.back() = kept;
+    s.runs.resize(kept);
+  }
+  return components;
+}
+
+}  // namespace typemerge::preprocess::runs
