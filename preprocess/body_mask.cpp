@@ -46,11 +46,13 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
   };
 
   // 1–2. Tissue, opened in-plane; the seed is its largest 3D component.
-  std::vector<runs::SliceRuns> tissue(nz), seed(nz);
+  // Denser than air too, while the slice is in cache: what step 4 may clear.
+  std::vector<runs::SliceRuns> tissue(nz), seed(nz), dense(nz);
   const runs::Kernel opening = disk(options.opening_mm, sx, sy);
   each_slice([&](std::size_t k) {
-    tissue[k] = runs::threshold_above(volume.slice(static_cast<std::int64_t>(k)), cols, rows,
-                                      options.body_threshold_hu);
+    const float* values = volume.slice(static_cast<std::int64_t>(k));
+    tissue[k] = runs::threshold_above(values, cols, rows, options.body_threshold_hu);
+    dense[k] = runs::threshold_above(values, cols, rows, options.air_threshold_hu);
     seed[k] = runs::dilate(runs::erode(tissue[k], opening), opening);
   });
   const std::size_t components = runs::keep_largest_component(seed);
@@ -116,27 +118,16 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
   }
   std::vector<std::int64_t> cleared_in_slice(nz, 0);
   each_slice([&](std::size_t k) {
+    // Only what is denser than air and outside the body is written; nothing else is read.
     float* values = volume.slice(static_cast<std::int64_t>(k));
-    std::int64_t cleared = 0;
-    const runs::SliceRuns& kept = keep[k];
-    // Only the gaps between kept runs are read.
+    const runs::SliceRuns clear = runs::subtract(dense[k], keep[k]);
     for (std::int32_t y = 0; y < rows; ++y) {
       float* row = values + static_cast<std::ptrdiff_t>(y) * cols;
-      std::int32_t x = 0;
-      auto clear_to = [&](std::int32_t end) {
-        for (; x < end; ++x) {
-          if (row[x] > options.air_threshold_hu) {
-            row[x] = -1000.0f;
-            ++cleared;
-          }
-        }
-      };
-      for (const runs::Run* r = kept.row_begin(y); r != kept.row_end(y); ++r) {
-        clear_to(r->begin);
-        x = r->end;
+      for (const runs::Run* r = clear.row_begin(y); r != clear.row_end(y); ++r) {
+        std::fill(row + r->begin, row + r->end, -1000.0f);
       }
-      clear_to(cols);
     }
+    const auto cleared = static_cast<std::int64_t>(clear.count());
     cleared_in_slice[k] = cleared;
   });
   std::int64_t cleared = 0;

@@ -196,6 +196,26 @@ SliceRuns intersect(const SliceRuns& a, const SliceRuns& b) {
   return out;
 }
 
+SliceRuns subtract(const SliceRuns& a, const SliceRuns& b) {
+  SliceRuns out;
+  out.cols = a.cols;
+  for (std::int32_t y = 0; y < a.rows(); ++y) {
+    const Run* cut = b.row_begin(y);
+    for (const Run* r = a.row_begin(y); r != a.row_end(y); ++r) {
+      std::int32_t begin = r->begin;
+      while (cut != b.row_end(y) && cut->end <= begin) ++cut;
+      // Cuts that start before the run's end split it; the last may reach into the next run.
+      for (const Run* c = cut; c != b.row_end(y) && c->begin < r->end; ++c) {
+        if (c->begin > begin) out.runs.push_back({begin, c->begin});
+        begin = std::max(begin, c->end);
+      }
+      if (begin < r->end) out.runs.push_back({begin, r->end});
+    }
+    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
+  }
+  return out;
+}
+
 std::size_t keep_largest_component(std::vector<SliceRuns>& slices) {
   // Runs are numbered slice after slice, row after row: the order in which an image scan
   // meets them, so the smallest number of a component is where it is first met.

@@ -55,9 +55,10 @@ SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t r
 SliceRuns erode(const SliceRuns& in, const Kernel& kernel);
 SliceRuns dilate(const SliceRuns& in, const Kernel& kernel);
 
-// Union and intersection of slices of the same size.
+// Union, intersection and difference (a without b) of slices of the same size.
 SliceRuns unite(const SliceRuns& a, const SliceRuns& b);
 SliceRuns intersect(const SliceRuns& a, const SliceRuns& b);
+SliceRuns subtract(const SliceRuns& a, const SliceRuns& b);
 
 // Keeps, of the mask made of `slices` (slice after slice, all of one size), the largest
 // 6-connected component (ties: the one met first in slice, row, column order); returns the

@@ -81,6 +81,9 @@ TEST(RunMask, MorphologyEqualsOpenCvWithItsDefaultBorders) {
     EXPECT_EQ(cv::countNonZero(to_mat(runs::unite(slice, other)) != cv::max(bytes, to_mat(other))), 0);
     EXPECT_EQ(cv::countNonZero(to_mat(runs::intersect(slice, other)) != cv::min(bytes, to_mat(other))),
               0);
+    EXPECT_EQ(cv::countNonZero(to_mat(runs::subtract(slice, other)) !=
+                               (bytes & ~to_mat(other))),
+              0);
     EXPECT_EQ(runs::intersect(slice, other).count(),
               static_cast<std::uint64_t>(cv::countNonZero(cv::min(bytes, to_mat(other)))));
   }
