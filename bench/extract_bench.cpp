@@ -111,7 +111,7 @@ using typemerge::bench::split;
 // row ends and the time by nothing).
 std::size_t classify_and_count_cuts(const core::Volume& volume, float iso,
                                     std::vector<std::uint8_t>& inside) {
-  const std::vector<float>& samples = volume.samples();
+  const core::Samples& samples = volume.samples();
   inside.resize(samples.size());
   std::transform(samples.begin(), samples.end(), inside.begin(),
                  [iso](float f) { return std::uint8_t{f >= iso}; });

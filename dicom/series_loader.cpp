@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
+#include <utility>
 
 #include <tbb/parallel_for.h>
 
@@ -14,7 +16,10 @@ namespace {
 
 // Decodes every acquired slice into `stack` (one slice per ordered header), file by file, so
 // a multi-frame file is decoded once.
-void decode_stack(const SeriesInfo& series, float* stack, std::size_t slice_voxels) {
+// Returns the lowest and highest value decoded, found by each file's thread while its slices
+// are in cache (a serial std::minmax_element afterwards was a fifth of the loader's time).
+std::pair<float, float> decode_stack(const SeriesInfo& series, float* stack,
+                                     std::size_t slice_voxels) {
   std::map<std::filesystem::path, std::vector<FrameTarget>> by_file;
   for (std::size_t k = 0; k < series.slices.size(); ++k) {
     by_file[series.slices[k].path].push_back({&series.slices[k], stack + k * slice_voxels});
@@ -25,9 +30,19 @@ void decode_stack(const SeriesInfo& series, float* stack, std::size_t slice_voxe
   std::vector<const std::vector<FrameTarget>*> files;
   for (const auto& entry : by_file) files.push_back(&entry.second);
   std::vector<std::string> errors(files.size());
+  std::vector<std::pair<float, float>> ranges(files.size());
   tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t f) {
     try {
       read_frames_hu(*files[f]);
+      float lowest = std::numeric_limits<float>::infinity();
+      float highest = -std::numeric_limits<float>::infinity();
+      for (const FrameTarget& target : *files[f]) {
+        for (std::size_t p = 0; p < slice_voxels; ++p) {
+          lowest = std::min(lowest, target.hu[p]);
+          highest = std::max(highest, target.hu[p]);
+        }
+      }
+      ranges[f] = {lowest, highest};
     } catch (const PixelError& error) {
       errors[f] = error.what();
     }
@@ -35,10 +50,17 @@ void decode_stack(const SeriesInfo& series, float* stack, std::size_t slice_voxe
   for (const std::string& error : errors) {
     if (!error.empty()) throw PixelError(error);
   }
+  if (ranges.empty()) return {0.0f, 0.0f};
+  std::pair<float, float> range = ranges.front();
+  for (const auto& [lowest, highest] : ranges) {
+    range.first = std::min(range.first, lowest);
+    range.second = std::max(range.second, highest);
+  }
+  return range;
 }
 
 // Linear resampling along the slice line onto the uniform grid the geometry chose.
-void resample_stack(const std::vector<float>& stack, const StackGeometry& geometry,
+void resample_stack(const core::Samples& stack, const StackGeometry& geometry,
                     std::size_t slice_voxels, core::Volume& volume) {
   const auto& offsets = geometry.normal_offsets;
   std::size_t upper = 1;
@@ -98,14 +120,21 @@ LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
   loaded.tilt_degrees = geometry.tilt_degrees;
   loaded.warnings = geometry.warnings;
   loaded.warnings.insert(loaded.warnings.end(), series.warnings.begin(), series.warnings.end());
-  loaded.volume = core::Volume(size, geometry.index_to_patient);
+  // Every sample is written below: by the decoders, or by the resampling of every slice.
+  loaded.volume = core::Volume::uninitialized(size, geometry.index_to_patient);
+  std::pair<float, float> range;
   try {
     if (geometry.needs_resampling) {
-      std::vector<float> stack(slice_voxels * series.slices.size());
+      core::Samples stack(slice_voxels * series.slices.size());
       decode_stack(series, stack.data(), slice_voxels);
       resample_stack(stack, geometry, slice_voxels, loaded.volume);
+      // The grid's values, not the acquired ones (interpolation stays within them, but a
+      // grid slice need not meet the extreme voxel).
+      const auto [lowest, highest] =
+          std::minmax_element(loaded.volume.samples().begin(), loaded.volume.samples().end());
+      range = {*lowest, *highest};
     } else {
-      decode_stack(series, loaded.volume.samples().data(), slice_voxels);
+      range = decode_stack(series, loaded.volume.samples().data(), slice_voxels);
     }
   } catch (const PixelError& error) {
     throw LoadError("series " + series.id + ": " + error.what());
@@ -116,10 +145,8 @@ LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
   if (missing_rescale) {
     loaded.warnings.emplace_back("no RescaleSlope/RescaleIntercept: stored values used as they are");
   }
-  const auto [lowest, highest] =
-      std::minmax_element(loaded.volume.samples().begin(), loaded.volume.samples().end());
-  loaded.min_hu = *lowest;
-  loaded.max_hu = *highest;
+  loaded.min_hu = range.first;
+  loaded.max_hu = range.second;
   if (auto warning = hounsfield_plausibility_warning(loaded.min_hu, loaded.max_hu);
       !warning.empty()) {
     loaded.warnings.push_back(std::move(warning));

@@ -26,4 +26,12 @@ double IndexToPatient::spacing(int axis) const {
 Volume::Volume(VolumeSize size, IndexToPatient geometry)
     : size_(size), geometry_(geometry), samples_(static_cast<std::size_t>(size.voxels()), 0.0f) {}
 
+Volume Volume::uninitialized(VolumeSize size, IndexToPatient geometry) {
+  Volume volume;
+  volume.size_ = size;
+  volume.geometry_ = geometry;
+  volume.samples_.resize(static_cast<std::size_t>(size.voxels()));  // default-initialised
+  return volume;
+}
+
 }  // namespace typemerge::core

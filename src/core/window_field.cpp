@@ -8,8 +8,8 @@ namespace typemerge::core {
 Volume window_field(const Volume& volume, float lo, float hi) {
   assert(lo <= hi);
   Volume field(volume.size(), volume.geometry());
-  const std::vector<float>& in = volume.samples();
-  std::vector<float>& out = field.samples();
+  const Samples& in = volume.samples();
+  Samples& out = field.samples();
   for (std::size_t v = 0; v < in.size(); ++v) out[v] = std::min(in[v] - lo, hi - in[v]);
   return field;
 }

@@ -36,7 +36,7 @@ void write_nrrd(const core::Volume& volume, const std::filesystem::path& path,
 
   AtomicFile file(path);
   file.write(header);
-  const std::vector<float>& samples = volume.samples();
+  const core::Samples& samples = volume.samples();
   constexpr std::size_t kChunk = 1 << 18;
   if (type == NrrdSampleType::float32) {
     file.write(samples.data(), samples.size() * sizeof(float));
