@@ -4,7 +4,7 @@
 // For tests only: it throws std::runtime_error on anything unexpected.
 //
 // lib3mf 1.8's reader leaks inside libzip; the test executables using this header run with a
-// LeakSanitizer suppression for exactly that (tests/support/lib3mf_reader.supp).
+// LeakSanitizer suppression for libzip only (tests/support/lib3mf_reader.supp).
 #pragma once
 
 #include <Model/COM/NMR_DLLInterfaces.h>
