@@ -91,6 +91,8 @@ std::vector<std::string> input_arguments(const InputOptions& input) {
 std::string parameter_text(const BatchOptions& options) {
   std::vector<std::string> all = input_arguments(options.input);
   all.insert(all.end(), options.surface_arguments.begin(), options.surface_arguments.end());
+  // Only when not the default, so that manifests of STL batches stay valid.
+  if (options.format != "stl") all.push_back("--format=" + options.format);
   std::sort(all.begin(), all.end());
   std::string text;
   for (const std::string& a : all) text += a + "\n";
@@ -332,7 +334,11 @@ std::vector<std::string> BatchRun::child_arguments(const StudyPlan& plan, const 
                                    study_input(plan).string(), "--series", plan.series_id};
   for (const std::string& a : input_arguments(options_.input)) argv.push_back(a);
   for (const std::string& a : options_.surface_arguments) argv.push_back(a);
-  for (const std::string& a : {std::string("-o"), (work / "out").string(), std::string("--report"),
+  // With --format 3mf one package, named like the study's output folder (so that packages
+  // gathered from several studies do not collide); else a folder of STL files.
+  const std::string package = fs::path(plan.output_name).filename().string() + ".3mf";
+  const fs::path output = options_.format == "3mf" ? work / "out" / package : work / "out";
+  for (const std::string& a : {std::string("-o"), output.string(), std::string("--report"),
                                (work / "report.json").string(), std::string("--threads"),
                                std::to_string(threads_per_study_),
                                "--max-memory=" + std::to_string(budget_)}) {
@@ -662,6 +668,10 @@ void add_batch_command(CLI::App& app, BatchOptions& options) {
   add_input_options(*command, options.input, /*required=*/false);
   command->add_option("--out", options.out, "Output folder (outputs, summary, manifest)")
       ->required();
+  command->add_option("--format", options.format,
+                      "stl: an STL file per surface (default); 3mf: one 3MF package per study "
+                      "holding every surface as a named, coloured object")
+      ->check(CLI::IsMember({"stl", "3mf"}));
   command->add_option("--name", options.name_pattern,
                       "Output folder of a study under --out: a pattern of {folder} (the study's "
                       "folder under ROOT), {study} and {series} (hashed ids); default {folder}");

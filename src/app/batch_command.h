@@ -1,8 +1,9 @@
-// `typemerge batch ROOT --preset bone[,skin…] --out OUTDIR`: every study under ROOT converted
-// with the options of `convert`, each in a child process of its own (a crash, a hang or a
-// memory limit ends that study only), several at once within a memory budget, resumable
-// (a manifest keyed by input content, tool version and parameters), shardable across the jobs
-// of a cluster scheduler, with a summary and an optional JSON-lines event log.
+// `typemerge batch ROOT --preset bone[,skin…] --out OUTDIR [--format stl|3mf]`: every study
+// under ROOT converted with the options of `convert` (an STL per surface, or one 3MF package),
+// each in a child process of its own (a crash, a hang or a memory limit ends that study only),
+// several at once within a memory budget, resumable (a manifest keyed by input content, tool
+// version and parameters), shardable across the jobs of a cluster scheduler, with a summary and
+// an optional JSON-lines event log.
 #pragma once
 
 #include <iosfwd>
@@ -19,6 +20,7 @@ struct BatchOptions {
   ConvertOptions convert;  // the surface options, checked here and passed on to `convert`
   std::vector<std::string> surface_arguments;  // those options as given, to pass on
   std::string out;
+  std::string format = "stl";  // stl: an STL per surface; 3mf: one package per study
   std::string name_pattern = kDefaultNamePattern;
   SeriesFilter filter;
   unsigned jobs = 1;

@@ -26,6 +26,7 @@
 #include "io/atomic_file.h"
 #include "io/preview_png.h"
 #include "io/mesh_writers.h"
+#include "io/three_mf_writer.h"
 #include "preprocess/body_mask.h"
 #include "preprocess/crop.h"
 #include "preprocess/denoise.h"
@@ -83,30 +84,61 @@ ordered_json record_json(const preprocess::StepRecord& record, double ms) {
           {"parameters", parameters}, {"warnings", record.warnings}, {"ms", ms}};
 }
 
-// Output path for one surface: OUT itself for one surface, OUT/<name>.stl for several.
-fs::path stl_path(const ConvertOptions& options, const SurfaceSpec& spec, std::size_t count) {
+// Where the surfaces go: one 3MF package holding them all when OUT ends in .3mf; else OUT
+// itself for one surface and OUT/<name>.stl for several.
+bool writes_package(const ConvertOptions& options) {
+  const std::string extension = fs::path(options.output).extension().string();
+  return extension == ".3mf" || extension == ".3MF";
+}
+
+fs::path output_path(const ConvertOptions& options, const SurfaceSpec& spec, std::size_t count) {
+  if (writes_package(options)) return options.output;
   if (count == 1 && fs::path(options.output).has_extension()) return options.output;
   return fs::path(options.output) / (spec.name + ".stl");
 }
 
+// The PNG beside an output; in a package of several surfaces, named after both.
+fs::path preview_path(const ConvertOptions& options, const SurfaceSpec& spec, std::size_t count) {
+  fs::path png = output_path(options, spec, count);
+  if (writes_package(options) && count > 1) {
+    return png.replace_extension("." + spec.name + ".png");
+  }
+  return png.replace_extension(".png");
+}
+
 // The output frame: LPS as extracted, or RAS (x and y negated: a rotation, so windings stay
-// outward), optionally translated so the bounding box is centred on the origin.
+// outward).
 void to_output_space(core::TriangleMesh& mesh, const ConvertOptions& options) {
-  if (options.space == "ras") {
-    for (auto& p : mesh.positions) {
-      p[0] = -p[0];
-      p[1] = -p[1];
-    }
-    for (auto& n : mesh.normals) {
-      n[0] = -n[0];
-      n[1] = -n[1];
+  if (options.space != "ras") return;
+  for (auto& p : mesh.positions) {
+    p[0] = -p[0];
+    p[1] = -p[1];
+  }
+  for (auto& n : mesh.normals) {
+    n[0] = -n[0];
+    n[1] = -n[1];
+  }
+}
+
+// --center: every surface moves by the one offset that centres their joint bounding box on the
+// origin, so that surfaces of one run stay in one frame (bone inside skin, as printed together).
+void center_together(std::vector<SurfaceResult>& results) {
+  core::BoundingBox joint;
+  for (const SurfaceResult& result : results) {
+    const core::BoundingBox box = core::bounding_box(result.mesh);
+    for (int c = 0; c < 3; ++c) {
+      joint.min[c] = std::min(joint.min[c], box.min[c]);
+      joint.max[c] = std::max(joint.max[c], box.max[c]);
     }
   }
-  if (!options.center || mesh.positions.empty()) return;
+  if (joint.min[0] > joint.max[0]) return;  // no vertex at all
   // The bounds are float positions held in double, so the casts back are exact.
-  const core::BoundingBox box = core::bounding_box(mesh);
-  for (auto& p : mesh.positions) {
-    for (int c = 0; c < 3; ++c) p[c] -= 0.5f * (float(box.min[c]) + float(box.max[c]));
+  std::array<float, 3> offset{};
+  for (int c = 0; c < 3; ++c) offset[c] = 0.5f * (float(joint.min[c]) + float(joint.max[c]));
+  for (SurfaceResult& result : results) {
+    for (auto& p : result.mesh.positions) {
+      for (int c = 0; c < 3; ++c) p[c] -= offset[c];
+    }
   }
 }
 
@@ -120,21 +152,23 @@ std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
       throw CommandError{kExitUsage, "unknown preset '" + name + "' (see `typemerge presets`)"};
     }
     SurfaceSpec spec{preset->name, "preset " + preset->name, preset->lo, std::nullopt, true,
-                     preset->min_component_mm3, preset->fill_cavities, preset->keep_largest};
+                     preset->min_component_mm3, preset->fill_cavities, preset->keep_largest,
+                     preset->srgb};
     if (std::isfinite(preset->hi)) spec.hi = preset->hi;
     specs.push_back(spec);
   }
   if (options.iso) {
     char label[64];
     std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
-    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false});
+    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false,
+                     io::kSurfaceGrey});
   }
   if (options.window.size() == 2) {
     if (!(options.window[0] <= options.window[1])) {
       throw CommandError{kExitUsage, "--window LO,HI needs LO <= HI"};
     }
     specs.push_back({"window", "window", options.window[0], options.window[1], false, 0, false,
-                     false});
+                     false, io::kSurfaceGrey});
   }
   if (specs.empty()) {
     throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};
@@ -148,7 +182,8 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
   add_input_options(*command, options.input);
   command->add_option("--series", options.series_id, "Series id from `typemerge info`");
   command->add_option("-o,--output", options.output,
-                      "Output .stl file (one surface) or folder (several presets)")
+                      "Output file (one surface: .stl, .ply, .obj), .3mf package (one object "
+                      "per surface, all in one) or folder (several surfaces as STL)")
       ->required();
   command->add_option("--threads", options.threads,
                       "Extraction threads (default 0: all cores); outputs are identical for any "
@@ -224,7 +259,8 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
                       "Coordinates of the output: lps (DICOM, 3D Slicer's STL default) or ras")
       ->check(CLI::IsMember({"lps", "ras"}));
   command->add_flag("--center", options.center,
-                    "Move the surface so its bounding box is centred on 0 (for printing)");
+                    "Move the surfaces, all by one offset, so their joint bounding box is "
+                    "centred on 0 (for printing)");
   command->add_flag("--show-descriptions", options.show_descriptions,
                     "Put the series' SeriesDescription in the report (free text that can "
                     "identify the patient; left out by default)");
@@ -248,17 +284,17 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
       throw CommandError{kExitUsage, error.what()};
     }
   }
-  if (specs.size() > 1) {
+  if (specs.size() > 1 && !writes_package(options)) {
     std::error_code error;
     fs::create_directories(options.output, error);
     if (error) throw CommandError{kExitOutputFailed, "cannot create " + options.output};
   } else {
     try {
-      io::mesh_format_for(stl_path(options, specs[0], 1), options.ascii_stl);
+      io::mesh_format_for(output_path(options, specs[0], 1), options.ascii_stl);
     } catch (const std::invalid_argument& error) {
       throw CommandError{kExitUsage, error.what()};
     }
-    const fs::path parent = fs::path(stl_path(options, specs[0], 1)).parent_path();
+    const fs::path parent = output_path(options, specs[0], 1).parent_path();
     if (!parent.empty() && !fs::is_directory(parent)) {
       throw CommandError{kExitOutputFailed, "output folder " + parent.string() + " does not exist"};
     }
@@ -381,9 +417,13 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
       pending.push_back(std::async(std::launch::deferred, make));
     }
   }
+  // Every surface before any file: one frame for --center, one package for .3mf, and no
+  // outputs of a run that fails on a later surface.
+  std::vector<SurfaceResult> results;
   for (std::size_t s = 0; s < specs.size(); ++s) {
     const SurfaceSpec& spec = specs[s];
-    SurfaceResult result = pending[s].get();
+    results.push_back(pending[s].get());
+    const SurfaceResult& result = results.back();
     if (result.mesh.empty()) {
       throw CommandError{kExitInputRefused,
                          result.steps.size() > 1
@@ -392,31 +432,58 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                                "--min-component, --finish none)"
                              : "no surface for " + spec.label};
     }
-    const fs::path stl = stl_path(options, spec, specs.size());
-    const auto write_start = Clock::now();
-    std::optional<std::size_t> crossings;  // with --check-intersections
-    try {
+  }
+  const std::string space = options.space == "ras" ? "RAS" : "LPS";
+  const std::string comment = std::string("typemerge ") + kVersion + " SPACE=" + space +
+                              (options.center ? " CENTERED" : "");
+  std::vector<double> write_ms(specs.size(), 0.0);
+  std::vector<std::optional<std::size_t>> crossings(specs.size());  // with --check-intersections
+  try {
+    for (std::size_t s = 0; s < specs.size(); ++s) {
       // The preview always shows the LPS surface, so its views are anatomical.
-      if (options.preview) io::write_preview_png(result.mesh, fs::path(stl).replace_extension(".png"));
-      to_output_space(result.mesh, options);
-      if (options.check_intersections) {
-        // On the floats as written (after --space / --center), which are what a slicer reads.
-        crossings = core::find_self_intersections(result.mesh).pairs.size();
-        if (*crossings > 0) {
-          result.warnings.push_back(std::to_string(*crossings) +
-                                    " pair(s) of crossing triangles in the output");
-        }
+      if (options.preview) {
+        io::write_preview_png(results[s].mesh, preview_path(options, specs[s], specs.size()));
       }
-      const std::string space = options.space == "ras" ? "RAS" : "LPS";
-      io::write_mesh(result.mesh, stl, io::mesh_format_for(stl, options.ascii_stl),
-                     std::string("typemerge ") + kVersion + " SPACE=" + space +
-                         (options.center ? " CENTERED" : ""));
-    } catch (const std::invalid_argument& error) {
-      throw CommandError{kExitUsage, error.what()};
-    } catch (const std::runtime_error& error) {
-      throw CommandError{kExitOutputFailed, error.what()};
+      to_output_space(results[s].mesh, options);
     }
-    const double write_ms = ms_since(write_start);
+    if (options.center) center_together(results);
+    for (std::size_t s = 0; s < specs.size(); ++s) {
+      if (!options.check_intersections) continue;
+      // On the floats as written (after --space / --center), which are what a slicer reads.
+      crossings[s] = core::find_self_intersections(results[s].mesh).pairs.size();
+      if (*crossings[s] > 0) {
+        results[s].warnings.push_back(std::to_string(*crossings[s]) +
+                                      " pair(s) of crossing triangles in the output");
+      }
+    }
+    if (writes_package(options)) {
+      const auto write_start = Clock::now();
+      std::vector<io::ThreeMfPart> parts;
+      for (std::size_t s = 0; s < specs.size(); ++s) {
+        parts.push_back({&results[s].mesh, specs[s].name, specs[s].srgb});
+      }
+      io::write_3mf(parts, options.output, comment);
+      // The package is one write: each surface is charged its share.
+      std::fill(write_ms.begin(), write_ms.end(), ms_since(write_start) / double(specs.size()));
+    } else {
+      for (std::size_t s = 0; s < specs.size(); ++s) {
+        const auto write_start = Clock::now();
+        const fs::path path = output_path(options, specs[s], specs.size());
+        io::write_mesh(results[s].mesh, path, io::mesh_format_for(path, options.ascii_stl),
+                       comment);
+        write_ms[s] = ms_since(write_start);
+      }
+    }
+  } catch (const std::invalid_argument& error) {
+    throw CommandError{kExitUsage, error.what()};
+  } catch (const std::runtime_error& error) {
+    throw CommandError{kExitOutputFailed, error.what()};
+  }
+
+  for (std::size_t s = 0; s < specs.size(); ++s) {
+    const SurfaceSpec& spec = specs[s];
+    const SurfaceResult& result = results[s];
+    const fs::path output = output_path(options, spec, specs.size());
     for (const auto& w : result.warnings) log << "warning: " << spec.name << ": " << w << "\n";
 
     ordered_json step_list = ordered_json::array();
@@ -429,29 +496,36 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     }
     const core::MeshCheck& final_check = result.steps.back().check;
     const core::BoundingBox box = core::bounding_box(result.mesh);
+    char colour[8];
+    std::snprintf(colour, sizeof colour, "#%02X%02X%02X", spec.srgb[0], spec.srgb[1],
+                  spec.srgb[2]);
     surfaces.push_back({{"name", spec.name},
                         {"label", spec.label},
                         {"hu_lo", spec.lo},
                         {"hu_hi", spec.hi ? ordered_json(*spec.hi) : ordered_json(nullptr)},
-                        {"output", stl.filename().string()},
+                        {"output", output.filename().string()},
+                        {"display_color",
+                         writes_package(options) ? ordered_json(colour) : ordered_json(nullptr)},
                         {"triangles", result.mesh.triangles.size()},
                         {"volume_ml", final_check.volume / 1000.0},
                         {"area_mm2", final_check.area},
                         {"bounding_box_lps_mm", {box.min, box.max}},
                         {"validity", check_json(final_check)},
                         {"self_intersecting_pairs",
-                         crossings ? ordered_json(*crossings) : ordered_json(nullptr)},
+                         crossings[s] ? ordered_json(*crossings[s]) : ordered_json(nullptr)},
                         {"steps", step_list},
-                        {"write_ms", write_ms},
+                        {"write_ms", write_ms[s]},
                         {"warnings", result.warnings}});
     const std::string crossing_text =
-        !crossings ? "" : *crossings == 0 ? ", no crossing triangles"
-                                          : ", " + std::to_string(*crossings) + " CROSSING pair(s)";
+        !crossings[s] ? ""
+        : *crossings[s] == 0
+            ? ", no crossing triangles"
+            : ", " + std::to_string(*crossings[s]) + " CROSSING pair(s)";
     char line[512];
     std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s%s, written to %s\n",
                   spec.label.c_str(), result.mesh.triangles.size(), final_check.volume / 1000.0,
                   final_check.closed_manifold() ? "closed manifold" : "NOT closed manifold",
-                  crossing_text.c_str(), stl.string().c_str());
+                  crossing_text.c_str(), output.string().c_str());
     log << line;
   }
   report["surfaces"] = surfaces;

@@ -1,6 +1,7 @@
 // `typemerge convert DIR (--preset A[,B…] | --iso HU | --window LO,HI) -o OUT`: the main job.
 // Loads the series once, optionally preprocesses it, and for each requested tissue extracts,
-// finishes and writes a binary STL (LPS mm), with an optional PNG preview and a JSON report.
+// finishes and writes a binary STL (LPS mm) — or all of them as the coloured parts of one 3MF
+// package — with an optional PNG preview and a JSON report.
 #pragma once
 
 #include <iosfwd>

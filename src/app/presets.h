@@ -11,6 +11,8 @@
 //   sample_series: 2950 components); its lower bound is kept.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,6 +24,9 @@ struct Preset {
   double lo;  // HU, inclusive
   double hi;  // HU, inclusive; +infinity: no upper bound
   std::string description;
+  // Display colour (sRGB) of the preset's object in a 3MF package: what the tissue looks like,
+  // and distinct where tissues are printed together (bone ivory inside tan skin).
+  std::array<std::uint8_t, 3> srgb;
   // Finishing that users otherwise do by hand: drop debris and the scanner table (components
   // under this volume), and for skin keep one outer shell.
   double min_component_mm3 = 0;

@@ -3,6 +3,8 @@
 // finishing); knows nothing of files or the command line.
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <utility>
@@ -24,6 +26,7 @@ struct SurfaceSpec {
   double min_component_mm3 = 0;  // preset default for finishing
   bool fill_cavities = false;    // preset default for finishing
   bool keep_largest = false;     // preset default for finishing
+  std::array<std::uint8_t, 3> srgb{};  // display colour of its object in a 3MF package
 };
 
 struct FinishOptions {

@@ -108,6 +108,8 @@ TEST(InputTree, CommandsLeaveEveryFileAndFolderAsTheyWere) {
                (out / "mc.stl").string(),
            "batch " + in + " --preset bone --out " + (out / "batch").string() + " --jobs 2",
            "batch " + in + " --preset bone --out " + (out / "batch").string(),  // rerun: skips
+           "convert " + in + " --preset bone,skin --center -o " + (out / "s.3mf").string(),
+           "batch " + in + " --preset bone,skin --format 3mf --out " + (out / "batch_3mf").string(),
        }) {
     const auto r = run_cli(command);
     // The tree holds a localizer-only study too: batch says "some failed" (5) for it.
