@@ -52,8 +52,8 @@ Category category_of(const dicom::SkippedFile& file) {
     case FileKind::unreadable: return {kUnreadable, ""};
     case FileKind::ct_image: return {kUnusableCt, ""};
     case FileKind::other_image:
-      if (!file.refused_modality.empty()) return {kOtherModality, shown_modality(file.refused_modality)};
-      return {kOtherImage, ""};
+      if (file.refused_modality.empty()) return {kOtherImage, ""};
+      return {kOtherModality, shown_modality(file.refused_modality)};
     case FileKind::non_image: return {kNonImage, ""};
     case FileKind::not_dicom: return {kNotDicom, ""};
   }
@@ -71,10 +71,10 @@ SkippedFiles counted(const Category& category, std::size_t files) {
       out.reason = one ? "CT image that cannot be used" : "CT images that cannot be used";
       break;
     case kOtherModality:
-      out.reason = (category.modality.empty()
-                        ? std::string(one ? "image of another modality" : "images of another modality")
-                        : category.modality + (one ? " image" : " images")) +
-                   ", not CT (use --allow-non-ct)";
+      out.reason = category.modality.empty() ? std::string(one ? "image" : "images") +
+                                                   " of another modality"
+                                             : category.modality + (one ? " image" : " images");
+      out.reason += ", not CT (use --allow-non-ct)";
       break;
     case kOtherImage:
       out.reason = one ? "image that is not a CT slice (secondary capture or colour)"

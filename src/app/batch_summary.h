@@ -58,7 +58,8 @@ struct BatchTotals {
 BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes);
 
 // Writes `<stem>.json` and `<stem>.csv` in `out_root` atomically; studies sorted by output
-// name, then folders by id. `shard` is "" or "K/N". Throws std::runtime_error when they cannot be written.
+// name, then folders by id. `shard` is "" or "K/N". Throws std::runtime_error when they
+// cannot be written.
 void write_summary(const std::filesystem::path& out_root, const std::string& stem,
                    std::vector<StudyOutcome> outcomes, const std::string& shard);
 

@@ -172,7 +172,7 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
   }
   { std::ofstream(damaged / (token("AccessionNumber") + ".txt")) << token("PatientID") << "\n"; }
   fs::create_directories(batch_root / token("PatientBirthDate"));
-  { std::ofstream(batch_root / token("PatientBirthDate") / "notes.txt") << token("StudyID") << "\n"; }
+  std::ofstream(batch_root / token("PatientBirthDate") / "notes.txt") << token("StudyID") << "\n";
   const std::vector<std::string> commands = {
       "info " + in,
       "info --json " + in,

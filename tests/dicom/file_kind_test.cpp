@@ -98,6 +98,10 @@ TEST(FileKind, TheRefusedModalityIsGivenOnlyWhenItAloneRefusedTheFile) {
   EXPECT_EQ(read.skip_reason, "secondary capture image");
   EXPECT_TRUE(read.refused_modality.empty());
   std::string damaged(128, '\0');
-  damaged += "DICM garbage";
-  EXPECT_TRUE(read_headers(write_temp("refused_modality_damaged", damaged), {}).refused_modality.empty());
+  damaged += "DICM";
+  damaged += std::string("\x02\x00\x10\x00UI\xff\x7f", 8);  // as in APreambleThenGarbage...
+  damaged += "garbage";
+  read = read_headers(write_temp("refused_modality_damaged", damaged), {});
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+  EXPECT_TRUE(read.refused_modality.empty());
 }
