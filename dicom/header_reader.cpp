@@ -307,6 +307,7 @@ void read_headers_or_throw(const std::filesystem::path& file, const HeaderReadOp
   result.kind = FileKind::other_image;
   if (secondary_capture) throw Refusal{"secondary capture image"};
   if (!ct_class && header.modality != "CT" && !options.allow_non_ct_modality) {
+    result.refused_modality = header.modality.empty() ? "(none)" : header.modality;
     throw Refusal{"modality " + (header.modality.empty() ? std::string("(none)") : header.modality) +
                   ", not CT"};
   }

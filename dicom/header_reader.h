@@ -23,6 +23,9 @@ struct HeaderReadResult {
   FileKind kind = FileKind::not_dicom;
   std::vector<SliceHeader> frames;  // empty when the file is skipped
   std::string skip_reason;          // why the file is not a usable CT slice (empty if it is)
+  // The file's Modality when that alone refused it (allow_non_ct_modality would accept it);
+  // empty otherwise. Lets callers say "MR images, use --allow-non-ct" without parsing text.
+  std::string refused_modality;
   std::vector<std::string> warnings;
 };
 

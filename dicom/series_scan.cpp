@@ -237,7 +237,7 @@ FolderScan scan_folder(const fs::path& root, const ScanOptions& options) {
     const fs::path relative =
         fs::is_directory(root, error) ? file.lexically_relative(root) : file.filename();
     if (!read.skip_reason.empty()) {
-      scan.skipped.push_back({relative, read.kind, read.skip_reason});
+      scan.skipped.push_back({relative, read.kind, read.skip_reason, read.refused_modality});
       continue;
     }
     for (SliceHeader& frame : read.frames) frames.push_back(std::move(frame));

@@ -35,6 +35,7 @@ struct SkippedFile {
   std::filesystem::path path;  // relative to the scanned root
   FileKind kind = FileKind::not_dicom;
   std::string reason;
+  std::string refused_modality;  // see HeaderReadResult
 };
 
 enum class SeriesRole {

@@ -19,6 +19,7 @@
 #include <ostream>
 #include <thread>
 
+#include "app/batch_folders.h"
 #include "app/batch_manifest.h"
 #include "app/batch_summary.h"
 #include "app/child_process.h"
@@ -218,11 +219,25 @@ struct RunningStudy {
   bool timed_out = false;
 };
 
-// 0 every study converted or up to date, 6 none converted, 5 some failed or interrupted (an
-// interrupted run itself exits 130 before this is asked).
+// 0 every study converted or up to date, 6 none converted, 5 some failed or interrupted or a
+// folder's files were lost (no_study: unreadable DICOM, unusable CT images; an interrupted run
+// itself exits 130 before this is asked). Folders of files that are not CT by design (no_ct)
+// do not count.
 int exit_code_of(const BatchTotals& totals) {
   if (totals.converted + totals.up_to_date == 0) return kExitBatchNoneConverted;
-  return totals.failed + totals.interrupted > 0 ? kExitBatchSomeFailed : kExitOk;
+  return totals.failed + totals.interrupted + totals.no_study > 0 ? kExitBatchSomeFailed
+                                                                  : kExitOk;
+}
+
+// ", 1 no_study folder, 2 no_ct folders" for the progress lines; "" when there are none.
+std::string folder_counts(const BatchTotals& totals) {
+  std::string text;
+  for (const auto& [count, status] : {std::pair{totals.no_study, "no_study"},
+                                      std::pair{totals.no_ct, "no_ct"}}) {
+    if (count == 0) continue;
+    text += ", " + std::to_string(count) + " " + status + (count == 1 ? " folder" : " folders");
+  }
+  return text;
 }
 
 StudyOutcome outcome_base(const StudyPlan& plan) {
@@ -300,6 +315,7 @@ class BatchRun {
 
  private:
   void prepare(const std::vector<StudyPlan>& plans);
+  void account_for_folders(const dicom::FolderScan& scan, const std::vector<StudyPlan>& plans);
   bool start_study(PendingStudy study, std::uint64_t estimate, const fs::path& my_work,
                    std::vector<RunningStudy>& running);
   void stop_all(std::vector<RunningStudy>& running);
@@ -410,6 +426,15 @@ void BatchRun::prepare(const std::vector<StudyPlan>& plans) {
   }
 }
 
+// Folders whose files went into no study get entries of their own: a folder of damaged files
+// must not vanish from the account of a batch that converted the rest.
+void BatchRun::account_for_folders(const dicom::FolderScan& scan,
+                                   const std::vector<StudyPlan>& plans) {
+  for (const FolderWithoutStudy& folder : folders_without_study(scan, plans)) {
+    if (in_shard(folder.folder_id, shard_.k, shard_.n)) outcomes_.push_back(folder_outcome(folder));
+  }
+}
+
 int BatchRun::run() {
   shard_ = parse_shard(options_.shard);
   budget_ = options_.max_memory.empty() ? default_memory_budget()
@@ -440,26 +465,36 @@ int BatchRun::run() {
   const std::vector<StudyPlan> plans = plan_studies(scan, options_.filter, options_.name_pattern,
                                                     dicom::patient_identifiers);
   prepare(plans);
+  account_for_folders(scan, plans);
 
   std::uint64_t voxels_to_do = 0;
   for (const PendingStudy& s : queue_) voxels_to_do += s.plan->voxels;
   progress_ = std::make_unique<BatchProgress>(log_, queue_.size(), voxels_to_do);
-  std::size_t skipped = 0, refused = 0;
-  for (const StudyOutcome& o : outcomes_) (o.status == StudyStatus::up_to_date ? skipped : refused)++;
+  const BatchTotals before = totals_of(outcomes_);
+  const std::size_t skipped = before.up_to_date, refused = before.failed;
   // ROOT itself is not repeated: archive folder names can spell patient names.
   log_ << "batch: " << plans.size() << (plans.size() == 1 ? " study found" : " studies found")
        << (shard_.active() ? ", shard " + shard_.text : std::string()) << "; " << queue_.size()
-       << " to convert, " << skipped << " up to date, " << refused << " without a usable series\n"
+       << " to convert, " << skipped << " up to date, " << refused << " without a usable series"
+       << folder_counts(before) << "\n"
        << std::flush;
   events_.write("batch_start", {{"studies", plans.size()},
                                 {"shard", shard_.text},
                                 {"to_convert", queue_.size()},
                                 {"up_to_date", skipped},
                                 {"refused", refused},
+                                {"no_study", before.no_study},
+                                {"no_ct", before.no_ct},
                                 {"jobs", options_.jobs},
                                 {"threads_per_study", threads_per_study_},
                                 {"memory_budget_mb", budget_ >> 20}});
   for (const StudyOutcome& o : outcomes_) {
+    if (o.status == StudyStatus::no_study || o.status == StudyStatus::no_ct) {
+      log_ << o.input << ": " << status_name(o.status) << ": " << o.reason << "\n";
+      events_.write("folder", {{"folder", o.input}, {"status", status_name(o.status)},
+                               {"reason", o.reason}});
+      continue;
+    }
     if (o.status == StudyStatus::failed) {
       log_ << o.output_name << ": failed: " << o.reason << "\n";
     }
@@ -518,15 +553,16 @@ int BatchRun::run() {
   }
   const BatchTotals totals = totals_of(outcomes_);
   char line[256];
-  std::snprintf(line, sizeof line,
-                "batch: %zu converted, %zu up to date, %zu failed%s in %.1f s; summary in %s\n",
-                totals.converted, totals.up_to_date, totals.failed,
-                g_interrupted ? ", interrupted" : "", seconds_since(start_),
-                (out_ / (stem + ".json")).string().c_str());
-  log_ << line;
+  std::snprintf(line, sizeof line, "batch: %zu converted, %zu up to date, %zu failed",
+                totals.converted, totals.up_to_date, totals.failed);
+  log_ << line << folder_counts(totals);
+  std::snprintf(line, sizeof line, "%s in %.1f s; summary in ",
+                g_interrupted ? ", interrupted" : "", seconds_since(start_));
+  log_ << line << (out_ / (stem + ".json")).string() << "\n";
   const int code = g_interrupted ? kExitInterrupted : exit_code_of(totals);
   events_.write("batch_end", {{"converted", totals.converted}, {"up_to_date", totals.up_to_date},
-                              {"failed", totals.failed}, {"interrupted", bool(g_interrupted)},
+                              {"failed", totals.failed}, {"no_study", totals.no_study},
+                              {"no_ct", totals.no_ct}, {"interrupted", bool(g_interrupted)},
                               {"seconds", std::round(seconds_since(start_) * 1000) / 1000},
                               {"exit_code", code}});
   return code;
@@ -713,9 +749,11 @@ int run_batch(const BatchOptions& options, std::ostream& log) {
   if (options.merge_summaries) {
     try {
       const auto outcomes = merge_shard_summaries(options.out);
-      log << "batch: joined " << outcomes.size() << " studies into "
+      const BatchTotals totals = totals_of(outcomes);
+      log << "batch: joined " << totals.studies() << " studies"
+          << folder_counts(totals) << " into "
           << (fs::path(options.out) / "summary.json").string() << "\n";
-      return exit_code_of(totals_of(outcomes));
+      return exit_code_of(totals);
     } catch (const std::runtime_error& error) {
       throw CommandError{kExitInputRefused, error.what()};
     }

@@ -33,7 +33,8 @@ struct BatchOptions {
 };
 
 // Exit codes of `batch` (README "Exit codes"): 0 every study converted or up to date,
-// 5 some failed, 6 none converted, 2 bad arguments, 3 output folder unusable, 130 interrupted.
+// 5 some failed or a folder's DICOM files could not be used (no_study), 6 none converted,
+// 2 bad arguments, 3 output folder unusable, 130 interrupted.
 inline constexpr int kExitBatchSomeFailed = 5;
 inline constexpr int kExitBatchNoneConverted = 6;
 inline constexpr int kExitInterrupted = 130;

@@ -6,9 +6,11 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <regex>
 #include <stdexcept>
+#include <tuple>
 
 #include "app/version.h"
 #include "io/atomic_file.h"
@@ -21,7 +23,7 @@ using nlohmann::ordered_json;
 
 StudyStatus status_from(const std::string& name) {
   for (StudyStatus s : {StudyStatus::converted, StudyStatus::up_to_date, StudyStatus::failed,
-                        StudyStatus::interrupted}) {
+                        StudyStatus::interrupted, StudyStatus::no_study, StudyStatus::no_ct}) {
     if (name == status_name(s)) return s;
   }
   throw std::runtime_error("unknown study status '" + name + "'");
@@ -37,12 +39,18 @@ ordered_json to_json(const StudyOutcome& o) {
                         {"volume_ml", rounded(s.volume_ml, 0.001)},
                         {"closed_manifold", s.closed_manifold}});
   }
+  ordered_json skipped = ordered_json::array();
+  for (const SkippedFiles& k : o.skipped) {
+    skipped.push_back({{"files", k.files}, {"reason", k.reason},
+                       {"counts_as_failure", k.counts_as_failure}});
+  }
   return {{"input", o.input},
           {"study", o.study},
           {"series", o.series},
           {"output", o.output_name},
           {"status", status_name(o.status)},
           {"reason", o.reason},
+          {"skipped", skipped},
           {"surfaces", surfaces},
           {"warnings", o.warnings},
           {"seconds", rounded(o.seconds, 0.001)},
@@ -58,6 +66,12 @@ StudyOutcome from_json(const ordered_json& j) {
   o.output_name = j.at("output").get<std::string>();
   o.status = status_from(j.at("status").get<std::string>());
   o.reason = j.at("reason").get<std::string>();
+  if (j.contains("skipped")) {  // absent from records of versions before folders were listed
+    for (const auto& k : j.at("skipped")) {
+      o.skipped.push_back({k.at("files").get<std::size_t>(), k.at("reason").get<std::string>(),
+                           k.at("counts_as_failure").get<bool>()});
+    }
+  }
   for (const auto& s : j.at("surfaces")) {
     o.surfaces.push_back({s.at("surface").get<std::string>(), s.at("file").get<std::string>(),
                           s.at("triangles").get<std::uint64_t>(), s.at("volume_ml").get<double>(),
@@ -125,10 +139,18 @@ void write_atomically(const fs::path& path, const std::string& text) {
   file.commit();
 }
 
-// Summaries list studies by output name, whatever order they were converted in.
+bool is_folder(const StudyOutcome& o) {
+  return o.status == StudyStatus::no_study || o.status == StudyStatus::no_ct;
+}
+
+// Summaries list studies by output name, whatever order they were converted in, then the
+// folders without a study by id.
 void sort_by_output_name(std::vector<StudyOutcome>& outcomes) {
   std::sort(outcomes.begin(), outcomes.end(), [](const StudyOutcome& a, const StudyOutcome& b) {
-    return std::tie(a.output_name, a.study) < std::tie(b.output_name, b.study);
+    return std::make_tuple(is_folder(a), std::cref(a.output_name), std::cref(a.study),
+                           std::cref(a.input)) <
+           std::make_tuple(is_folder(b), std::cref(b.output_name), std::cref(b.study),
+                           std::cref(b.input));
   });
 }
 
@@ -140,6 +162,8 @@ const char* status_name(StudyStatus status) {
     case StudyStatus::up_to_date: return "up_to_date";
     case StudyStatus::failed: return "failed";
     case StudyStatus::interrupted: return "interrupted";
+    case StudyStatus::no_study: return "no_study";
+    case StudyStatus::no_ct: return "no_ct";
   }
   return "failed";
 }
@@ -162,6 +186,8 @@ BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes) {
       case StudyStatus::up_to_date: ++totals.up_to_date; break;
       case StudyStatus::failed: ++totals.failed; break;
       case StudyStatus::interrupted: ++totals.interrupted; break;
+      case StudyStatus::no_study: ++totals.no_study; break;
+      case StudyStatus::no_ct: ++totals.no_ct; break;
     }
   }
   return totals;
@@ -174,11 +200,13 @@ void write_summary(const fs::path& out_root, const std::string& stem,
   ordered_json json = {{"tool", "typemerge"},
                        {"version", kVersion},
                        {"shard", shard},
-                       {"studies", outcomes.size()},
+                       {"studies", totals.studies()},
                        {"converted", totals.converted},
                        {"up_to_date", totals.up_to_date},
                        {"failed", totals.failed},
-                       {"interrupted", totals.interrupted}};
+                       {"interrupted", totals.interrupted},
+                       {"no_study", totals.no_study},
+                       {"no_ct", totals.no_ct}};
   json["results"] = ordered_json::array();
   for (const StudyOutcome& o : outcomes) json["results"].push_back(to_json(o));
   write_atomically(out_root / (stem + ".json"), json.dump(2) + "\n");
@@ -222,9 +250,9 @@ std::vector<StudyOutcome> merge_shard_summaries(const fs::path& out_root) {
       const ordered_json json = ordered_json::parse(in);
       for (const auto& result : json.at("results")) {
         outcomes.push_back(from_json(result));
-        if (seen[outcomes.back().study]++ > 0) {
-          throw std::runtime_error("study " + outcomes.back().study + " appears in two shards");
-        }
+        const StudyOutcome& o = outcomes.back();
+        const std::string id = is_folder(o) ? o.input : "study " + o.study;
+        if (seen[id]++ > 0) throw std::runtime_error(id + " appears in two shards");
       }
     } catch (const nlohmann::json::exception& e) {
       throw std::runtime_error("malformed " + path.filename().string() + ": " + e.what());

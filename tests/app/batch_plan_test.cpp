@@ -1,5 +1,6 @@
 // Batch planning, names, shards, manifest keys and summaries, on a generated study tree.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <signal.h>
 #include <unistd.h>
@@ -9,9 +10,11 @@
 
 #include <algorithm>
 #include <fstream>
+#include <map>
 #include <set>
 
 #include "app/batch_command.h"
+#include "app/batch_folders.h"
 #include "app/batch_manifest.h"
 #include "app/batch_plan.h"
 #include "app/batch_summary.h"
@@ -222,6 +225,150 @@ TEST(BatchSummary, CsvQuotesAndShardMergeChecksCompleteness) {
   EXPECT_TRUE(fs::exists(out / "summary.json"));
   write_summary(out, "summary.shard-1-of-3", {a}, "1/3");
   EXPECT_THROW(merge_shard_summaries(out), std::runtime_error);  // 2 and 3 shards mixed
+}
+
+// The shared tree holds two folders whose files went into no study: ROOT (README.txt) and
+// siteA/p01 (notes.txt, beside the folder of study A). Folders holding a study's files, such
+// as siteA/p01/studyA/scout, are not listed.
+TEST(BatchFolders, ListsTheFoldersNoStudyCameFromByTheirIds) {
+  const auto plans = plan_studies(scan(), {}, kDefaultNamePattern);
+  const auto folders = folders_without_study(scan(), plans);
+  ASSERT_EQ(folders.size(), 2u);
+  std::set<std::string> folder_names;
+  for (const auto& f : folders) {
+    folder_names.insert(f.folder.generic_string());
+    EXPECT_EQ(f.folder_id, folder_id_of(f.folder));
+    EXPECT_EQ(f.reason(), "1 non-DICOM file");
+    EXPECT_FALSE(f.counts_as_failure());
+    const StudyOutcome entry = folder_outcome(f);
+    EXPECT_EQ(entry.status, StudyStatus::no_ct);
+    EXPECT_EQ(entry.input, "folder-" + f.folder_id);
+    EXPECT_TRUE(entry.study.empty() && entry.output_name.empty());
+  }
+  EXPECT_EQ(folder_names, (std::set<std::string>{"", "siteA/p01"}));
+  EXPECT_LT(folders[0].folder_id, folders[1].folder_id);  // sorted by id
+}
+
+TEST(BatchFolders, IdsAreStableHashesOfTheRelativeFolder) {
+  const std::string id = folder_id_of("siteA/p01");
+  EXPECT_EQ(id.size(), 12u);
+  EXPECT_EQ(id.find_first_not_of("0123456789abcdef"), std::string::npos) << id;
+  EXPECT_EQ(folder_id_of("siteA/p01/"), id);
+  EXPECT_EQ(folder_id_of("siteA/./p01"), id);
+  EXPECT_EQ(folder_id_of(""), folder_id_of("."));
+  EXPECT_NE(folder_id_of("siteA/p02"), id);
+  EXPECT_NE(folder_id_of("sitea/p01"), id);
+}
+
+// Each kind of skipped file, its count and whether it fails the batch (the table in
+// batch_folders.cpp, README "Batch"): made-up scan results, one folder per case.
+TEST(BatchFolders, CountsFilesByKindAndOnlyLostDataFails) {
+  using typemerge::dicom::FileKind;
+  typemerge::dicom::FolderScan made_up;
+  made_up.root = tree();
+  made_up.skipped = {
+      {"damaged/a", FileKind::unreadable, "damaged DICOM file: x", ""},
+      {"damaged/b", FileKind::unreadable, "truncated file: y", ""},
+      {"damaged/c", FileKind::unreadable, "refused before parsing: z", ""},
+      {"damaged/notes.txt", FileKind::not_dicom, "not a DICOM file", ""},
+      {"damaged/more.txt", FileKind::not_dicom, "not a DICOM file", ""},
+      {"mr/1", FileKind::other_image, "modality MR, not CT", "MR"},
+      {"mr/2", FileKind::other_image, "modality MR, not CT", "MR"},
+      {"mr/3", FileKind::other_image, "modality PT, not CT", "PT"},
+      {"mr/4", FileKind::other_image, "modality (none), not CT", "(none)"},
+      {"mr/5", FileKind::other_image, "modality ..., not CT", "DOE^JOHN"},
+      {"cd/DICOMDIR", FileKind::non_image, "DICOMDIR (media directory)", ""},
+      {"cd/sc", FileKind::other_image, "secondary capture image", ""},
+      {"cd/readme", FileKind::not_dicom, "not a DICOM file", ""},
+      {"ct/1", FileKind::ct_image, "missing ImagePositionPatient", ""},
+      {"study/stray.txt", FileKind::not_dicom, "not a DICOM file", ""},
+  };
+  StudyPlan plan;  // a study with a file in "study": its folder is accounted for by the study
+  plan.files = {tree() / "study" / "im0"};
+  const auto folders = folders_without_study(made_up, {plan});
+  std::map<std::string, const FolderWithoutStudy*> by_name;
+  for (const auto& f : folders) by_name[f.folder.generic_string()] = &f;
+  ASSERT_EQ(by_name.size(), 4u);
+  EXPECT_FALSE(by_name.count("study"));
+
+  const FolderWithoutStudy& damaged = *by_name.at("damaged");
+  EXPECT_EQ(damaged.reason(), "3 unreadable DICOM files; 2 non-DICOM files");
+  ASSERT_EQ(damaged.skipped.size(), 2u);
+  EXPECT_EQ(damaged.skipped[0].files, 3u);
+  EXPECT_TRUE(damaged.skipped[0].counts_as_failure);
+  EXPECT_FALSE(damaged.skipped[1].counts_as_failure);
+  EXPECT_TRUE(damaged.counts_as_failure());
+  EXPECT_EQ(folder_outcome(damaged).status, StudyStatus::no_study);
+
+  // A hostile Modality is not repeated, a missing one not invented.
+  const FolderWithoutStudy& mr = *by_name.at("mr");
+  EXPECT_EQ(mr.reason(),
+            "2 images of another modality, not CT (use --allow-non-ct); "
+            "2 MR images, not CT (use --allow-non-ct); 1 PT image, not CT (use --allow-non-ct)");
+  EXPECT_FALSE(mr.counts_as_failure());
+  EXPECT_EQ(folder_outcome(mr).status, StudyStatus::no_ct);
+
+  const FolderWithoutStudy& cd = *by_name.at("cd");
+  EXPECT_EQ(cd.reason(),
+            "1 image that is not a CT slice (secondary capture or colour); "
+            "1 DICOM file without pixel data (DICOMDIR, report, ...); 1 non-DICOM file");
+  EXPECT_FALSE(cd.counts_as_failure());
+
+  const FolderWithoutStudy& ct = *by_name.at("ct");
+  EXPECT_EQ(ct.reason(), "1 CT image that cannot be used");
+  EXPECT_TRUE(ct.counts_as_failure());
+}
+
+TEST(BatchSummary, FolderEntriesRoundTripAndComeAfterTheStudies) {
+  const fs::path out = typemerge::test::fresh_dir("summary_folders");
+  StudyOutcome study;
+  study.input = "zz";
+  study.study = "s1";
+  study.output_name = "zz";
+  study.status = StudyStatus::converted;
+  StudyOutcome damaged;
+  damaged.input = "folder-000000000002";
+  damaged.status = StudyStatus::no_study;
+  damaged.reason = "3 unreadable DICOM files";
+  damaged.skipped = {{3, "unreadable DICOM files", true}};
+  StudyOutcome notes = damaged;
+  notes.input = "folder-000000000001";
+  notes.status = StudyStatus::no_ct;
+  notes.reason = "1 non-DICOM file";
+  notes.skipped = {{1, "non-DICOM file", false}};
+  const StudyOutcome back = outcome_from_json(outcome_json(damaged));
+  EXPECT_EQ(back.status, StudyStatus::no_study);
+  ASSERT_EQ(back.skipped.size(), 1u);
+  EXPECT_EQ(back.skipped[0].files, 3u);
+  EXPECT_TRUE(back.skipped[0].counts_as_failure);
+  EXPECT_TRUE(outcome_from_json(R"({"input":"a","study":"s","series":"","output":"a",)"
+                                R"("status":"failed","reason":"","surfaces":[],"seconds":0,)"
+                                R"("cpu_seconds":0,"peak_memory_mb":0})")
+                  .skipped.empty());  // a record written before folders were listed
+
+  const BatchTotals totals = totals_of({study, damaged, notes});
+  EXPECT_EQ(totals.studies(), 1u);
+  EXPECT_EQ(totals.no_study, 1u);
+  EXPECT_EQ(totals.no_ct, 1u);
+  write_summary(out, "summary", {damaged, notes, study}, "");
+  const auto json = nlohmann::json::parse(typemerge::test::read_file_bytes(out / "summary.json"));
+  EXPECT_EQ(json["studies"], 1);
+  EXPECT_EQ(json["no_study"], 1);
+  EXPECT_EQ(json["no_ct"], 1);
+  ASSERT_EQ(json["results"].size(), 3u);
+  EXPECT_EQ(json["results"][0]["input"], "zz");
+  EXPECT_EQ(json["results"][1]["input"], "folder-000000000001");
+  EXPECT_EQ(json["results"][2]["skipped"][0]["reason"], "unreadable DICOM files");
+  const std::string csv = typemerge::test::read_file_bytes(out / "summary.csv");
+  EXPECT_NE(csv.find("\nfolder-000000000002,,,,no_study,3 unreadable DICOM files,"),
+            std::string::npos) << csv;
+
+  // Shards: two folders without a study id are not "the same study in two shards".
+  write_summary(out, "summary.shard-1-of-2", {study, notes}, "1/2");
+  write_summary(out, "summary.shard-2-of-2", {damaged}, "2/2");
+  EXPECT_EQ(merge_shard_summaries(out).size(), 3u);
+  write_summary(out, "summary.shard-2-of-2", {damaged, notes}, "2/2");
+  EXPECT_THROW(merge_shard_summaries(out), std::runtime_error);  // a folder in both shards
 }
 
 TEST(BatchCommand, MemorySizesParse) {

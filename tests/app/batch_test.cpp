@@ -14,6 +14,8 @@
 #include <map>
 #include <thread>
 
+#include "app/batch_folders.h"
+#include "app/batch_plan.h"
 #include "app/cli_runner.h"
 #include "app/study_tree.h"
 
@@ -21,6 +23,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using typemerge::app::folder_id_of;
 using typemerge::test::fresh_dir;
 using typemerge::test::read_file_bytes;
 using typemerge::test::run_cli;
@@ -117,9 +120,12 @@ TEST(Batch, ConvertsTheTreeChoosesSeriesAndReportsFailures) {
   ASSERT_TRUE(d);
   EXPECT_NE((*d)["reason"].get<std::string>().find("missing slice"), std::string::npos);
   EXPECT_FALSE(fs::exists(out / "siteB" / "studyD"));
-  // The CSV has a header and one row per study.
+  // The CSV has a header and one row per study, and one per folder no study came from: ROOT
+  // (README.txt) and siteA/p01 (notes.txt), neither a failure.
   const std::string csv = read_file_bytes(out / "summary.csv");
-  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 6);
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 8);
+  EXPECT_EQ(summary["no_ct"], 2);
+  EXPECT_EQ(summary["no_study"], 0);
   // One event line per study end, plus start and end of the batch.
   const std::string events = read_file_bytes(out.parent_path() / "events.jsonl");
   int ends = 0;
@@ -220,6 +226,140 @@ TEST(Batch, JobsAndShardsGiveTheSameOutputsAsOneSerialRun) {
   EXPECT_EQ(outputs_of(sharded), serial);
   EXPECT_EQ(comparable(summary_of(sharded / "summary.json")["results"]),
             comparable(summary_of(work / "serial" / "summary.json")["results"]));
+}
+
+// Issue 16: a tree of one study, a folder of damaged files (named after the patient) with two
+// text files, a folder of notes and a folder of MR images. The summary, CSV, progress and log
+// account for every folder, by hash, with reasons and counts; the exit code follows the rule
+// of README "Exit codes": damaged DICOM fails the batch, notes and MR images do not.
+const json* result_with_input(const json& summary, const std::string& input) {
+  for (const auto& r : summary["results"]) {
+    if (r["input"] == input) return &r;
+  }
+  return nullptr;
+}
+
+TEST(Batch, EveryFolderIsAccountedForEvenWithoutAStudy) {
+  const fs::path work = fresh_dir("batch_folders");
+  const fs::path root = work / "root";
+  typemerge::test::write_test_series(root / "good" / "s1", "G",
+                                     {"g1", "plain", "STANDARD", 10, 1.5, 6.0});
+  const fs::path damaged = root / "DOE_JOHN_damaged";
+  typemerge::test::write_damaged_dicom(damaged / "IM1");
+  typemerge::test::write_damaged_dicom(damaged / "IM2");
+  typemerge::test::write_truncated_copy(root / "good" / "s1" / "im0", damaged / "IM3");
+  std::ofstream(damaged / "notes.txt") << "scanned twice\n";
+  std::ofstream(damaged / "list.csv") << "a,b\n";
+  fs::create_directories(root / "docs");
+  std::ofstream(root / "docs" / "readme.txt") << "export of 2024\n";
+  typemerge::test::write_mr_series(root / "mr", "M", 4);
+
+  const std::string damaged_name = "folder-" + folder_id_of("DOE_JOHN_damaged");
+  const std::string docs_name = "folder-" + folder_id_of("docs");
+  const std::string mr_name = "folder-" + folder_id_of("mr");
+  const fs::path out = work / "out";
+  const auto run = run_cli("batch " + root.string() + " --preset bone --out " + out.string() +
+                           " --log " + (work / "events.jsonl").string());
+  EXPECT_EQ(run.exit_code, 5) << run.err;  // converted, but damaged files lost: partial
+  const json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["studies"], 1);
+  EXPECT_EQ(summary["converted"], 1);
+  EXPECT_EQ(summary["no_study"], 1);
+  EXPECT_EQ(summary["no_ct"], 2);
+  ASSERT_EQ(summary["results"].size(), 4u);
+
+  const json* d = result_with_input(summary, damaged_name);
+  ASSERT_TRUE(d) << summary.dump(1);
+  EXPECT_EQ((*d)["status"], "no_study");
+  EXPECT_EQ((*d)["reason"], "3 unreadable DICOM files; 2 non-DICOM files");
+  EXPECT_EQ((*d)["skipped"], json::parse(R"([
+      {"files": 3, "reason": "unreadable DICOM files", "counts_as_failure": true},
+      {"files": 2, "reason": "non-DICOM files", "counts_as_failure": false}])"));
+  EXPECT_EQ((*d)["study"], "");
+  EXPECT_EQ((*d)["output"], "");
+  const json* docs = result_with_input(summary, docs_name);
+  ASSERT_TRUE(docs);
+  EXPECT_EQ((*docs)["status"], "no_ct");
+  EXPECT_EQ((*docs)["reason"], "1 non-DICOM file");
+  const json* mr = result_with_input(summary, mr_name);
+  ASSERT_TRUE(mr);
+  EXPECT_EQ((*mr)["status"], "no_ct");
+  EXPECT_EQ((*mr)["reason"], "4 MR images, not CT (use --allow-non-ct)");
+
+  const std::string csv = read_file_bytes(out / "summary.csv");
+  const std::string damaged_reason = "3 unreadable DICOM files; 2 non-DICOM files";
+  EXPECT_NE(csv.find("\n" + damaged_name + ",,,,no_study," + damaged_reason + ","),
+            std::string::npos) << csv;
+  EXPECT_NE(csv.find("\n" + mr_name + ",,,,no_ct,\"4 MR images, not CT (use --allow-non-ct)\","),
+            std::string::npos) << csv;  // quoted: the reason holds a comma
+  // Progress: a line per folder, and the totals.
+  EXPECT_NE(run.err.find(damaged_name + ": no_study: " + damaged_reason + "\n"), std::string::npos)
+      << run.err;
+  EXPECT_NE(run.err.find(docs_name + ": no_ct: 1 non-DICOM file\n"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("batch: 1 converted, 0 up to date, 0 failed, 1 no_study folder, "
+                         "2 no_ct folders in "),
+            std::string::npos) << run.err;
+  const std::string events = read_file_bytes(work / "events.jsonl");
+  const std::string folder_event =
+      R"("event":"folder","folder":")" + damaged_name + R"(","status":"no_study")";
+  EXPECT_NE(events.find(folder_event), std::string::npos) << events;
+  // Folders are named by hash only: no folder or file name, no patient name, no ROOT.
+  for (const std::string& text : {read_file_bytes(out / "summary.json"), csv, run.err, events}) {
+    for (const std::string& token : {std::string("DOE"), std::string("damaged"),
+                                     std::string("docs"), std::string("IM3"),
+                                     std::string("notes"), root.string()}) {
+      EXPECT_EQ(text.find(token), std::string::npos) << token << " in\n" << text;
+    }
+  }
+
+  // A rerun reports the folders again (they have no manifest record to skip by).
+  const auto rerun = run_cli("batch " + root.string() + " --preset bone --out " + out.string());
+  EXPECT_EQ(rerun.exit_code, 5) << rerun.err;
+  EXPECT_EQ(summary_of(out / "summary.json")["results"].size(), 4u);
+
+  // Notes and MR images alone do not fail a batch; damaged files alone convert nothing.
+  fs::rename(damaged, work / "damaged_aside");
+  EXPECT_EQ(run_cli("batch " + root.string() + " --preset bone --out " + (work / "clean").string())
+                .exit_code, 0);
+  EXPECT_EQ(summary_of(work / "clean" / "summary.json")["no_ct"], 2);
+  const fs::path only_damaged = work / "only_damaged";
+  fs::create_directories(only_damaged);
+  fs::rename(work / "damaged_aside", only_damaged / "DOE_JOHN_damaged");
+  EXPECT_EQ(run_cli("batch " + only_damaged.string() + " --preset bone --out " +
+                    (work / "none").string()).exit_code, 6);
+  const json none = summary_of(work / "none" / "summary.json");
+  EXPECT_EQ(none["no_study"], 1);
+  EXPECT_EQ(none["results"][0]["input"], damaged_name);
+}
+
+// With --shard the shard that owns a folder's id reports it, exactly one shard, and the
+// joined summary is that of one unsharded run.
+TEST(Batch, TheShardOwningAFoldersIdReportsIt) {
+  const fs::path work = fresh_dir("batch_folder_shards");
+  const fs::path root = work / "root";
+  fs::copy(tree(), root, fs::copy_options::recursive);
+  typemerge::test::write_damaged_dicom(root / "siteD" / "broken" / "IM1");
+  const std::string broken = "folder-" + folder_id_of("siteD/broken");
+  const std::string command = "batch " + root.string() + " --preset bone --out ";
+  ASSERT_EQ(run_cli(command + (work / "whole").string()).exit_code, 5);
+  const fs::path sharded = work / "sharded";
+  int reported_by = 0;
+  for (int k = 1; k <= 3; ++k) {
+    const auto run = run_cli(command + sharded.string() + " --shard " + std::to_string(k) + "/3");
+    const json summary =
+        summary_of(sharded / ("summary.shard-" + std::to_string(k) + "-of-3.json"));
+    const bool owns = typemerge::app::in_shard(folder_id_of("siteD/broken"), k, 3);
+    EXPECT_EQ(result_with_input(summary, broken) != nullptr, owns) << k;
+    EXPECT_EQ(run.err.find(broken) != std::string::npos, owns) << run.err;
+    if (owns) {
+      reported_by = k;
+      EXPECT_NE(run.exit_code, 0) << "the shard with the damaged folder did not fail";
+    }
+  }
+  EXPECT_NE(reported_by, 0);
+  EXPECT_EQ(run_cli("batch --merge-summaries --out " + sharded.string()).exit_code, 5);
+  EXPECT_EQ(comparable(summary_of(sharded / "summary.json")["results"]),
+            comparable(summary_of(work / "whole" / "summary.json")["results"]));
 }
 
 // Starts a batch in the background; returns its pid.

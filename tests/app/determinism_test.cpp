@@ -1,5 +1,6 @@
 // Byte-identical outputs (issue 6): the STL surfaces, the PNG previews, the NRRD volume,
-// `info --json` and the JSON report (minus its timing fields, which are measurements) are the
+// `info --json`, the JSON report and the batch summary, JSON and CSV, with its entries for
+// folders no study came of (minus timing and memory fields, which are measurements) are the
 // same across reruns, CPU counts, file names and directory order of the input, the locale
 // (C against a comma-decimal German one) and the time zone.
 //
@@ -15,10 +16,12 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include "app/cli_runner.h"
+#include "app/study_tree.h"
 #include "ct_writer/ct_writer.h"
 
 namespace {
@@ -82,6 +85,44 @@ void strip_timings(nlohmann::json& value) {
   }
 }
 
+// A batch input: the study, a folder of damaged files and notes, a folder of notes.
+const fs::path& batch_tree() {
+  static const fs::path root = [] {
+    const fs::path dir = fresh_dir("determinism_batch_tree");
+    write_study(dir / "study", false);
+    typemerge::test::write_damaged_dicom(dir / "damaged" / "a");
+    typemerge::test::write_damaged_dicom(dir / "damaged" / "b");
+    { std::ofstream(dir / "damaged" / "notes.txt") << "notes\n"; }
+    fs::create_directories(dir / "docs");
+    { std::ofstream(dir / "docs" / "readme.txt") << "readme\n"; }
+    return dir;
+  }();
+  return root;
+}
+
+// The batch summary of `batch_tree()` without its measurements: seconds, CPU seconds and peak
+// memory (the last three CSV columns, numbers, never quoted).
+void add_batch_summary(std::map<std::string, std::string>& result, const std::string& name,
+                       const std::string& environment, const std::string& wrapper) {
+  const fs::path out = fresh_dir("determinism_batch_" + name);
+  const auto run = run_cli("batch " + batch_tree().string() + " --preset bone --out " +
+                               out.string() + " --threads 1",
+                           environment, wrapper);
+  EXPECT_EQ(run.exit_code, 5) << name << ": " << run.err;  // the damaged folder fails it
+  auto summary = nlohmann::json::parse(read_file_bytes(out / "summary.json"));
+  for (auto& entry : summary["results"]) {
+    for (const char* measured : {"seconds", "cpu_seconds", "peak_memory_mb"}) entry.erase(measured);
+  }
+  result["batch/summary.json"] = summary.dump(1);
+  std::string csv;
+  std::istringstream lines(read_file_bytes(out / "summary.csv"));
+  for (std::string line; std::getline(lines, line);) {
+    for (int field = 0; field < 3; ++field) line.erase(line.rfind(','));
+    csv += line + "\n";
+  }
+  result["batch/summary.csv"] = csv;
+}
+
 // Every output of one configuration, by name.
 std::map<std::string, std::string> outputs(const std::string& name, const fs::path& study,
                                            const std::string& environment,
@@ -118,6 +159,7 @@ std::map<std::string, std::string> outputs(const std::string& name, const fs::pa
     }
     result[file] = std::move(bytes);
   }
+  add_batch_summary(result, name, environment, wrapper);
   return result;
 }
 
@@ -184,16 +226,19 @@ class Determinism : public ::testing::Test {
     static const auto reference = outputs("reference", study, "LC_ALL=C TZ=UTC");
     study_ = &study;
     reference_ = &reference;
-    ASSERT_EQ(reference_->size(), 13u) << "the reference run did not write every output";
+    ASSERT_EQ(reference_->size(), 15u) << "the reference run did not write every output";
   }
   const fs::path* study_ = nullptr;
   const std::map<std::string, std::string>* reference_ = nullptr;
 };
 
 TEST_F(Determinism, ReferenceRunWroteEverything) {
-  // info, NRRD ×2, bone and skin STL and PNG, two reports, two more STL, two 3MF (checked in
-  // SetUp).
+  // info, NRRD ×2, bone and skin STL and PNG, two reports, two more STL, two 3MF, the batch
+  // summary as JSON and CSV (checked in SetUp).
   for (const auto& [file, bytes] : *reference_) EXPECT_GT(bytes.size(), 100u) << file;
+  const std::string& summary = reference_->at("batch/summary.json");
+  EXPECT_NE(summary.find("\"no_study\""), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\"no_ct\""), std::string::npos) << summary;
 }
 
 TEST_F(Determinism, RerunGivesTheSameBytes) {

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "app/cli_runner.h"
+#include "app/study_tree.h"
 #include "ct_writer/ct_writer.h"
 
 namespace {
@@ -81,6 +82,12 @@ TEST(InputTree, CommandsLeaveEveryFileAndFolderAsTheyWere) {
   scout.image_type = "ORIGINAL\\PRIMARY\\LOCALIZER";
   ctw::write_ct_slice(scout, study / "patient" / "scout.dcm");
   { std::ofstream(study / "patient" / "notes.txt") << "not DICOM\n"; }
+  // Folders no study comes of, which batch lists (issue 16): damaged copies, a folder of notes.
+  typemerge::test::write_damaged_dicom(study / "patient" / "damaged" / "IM_broken");
+  typemerge::test::write_truncated_copy(study / "patient" / "part1" / "IM0",
+                                        study / "patient" / "damaged" / "IM_cut");
+  fs::create_directories(study / "patient" / "docs");
+  { std::ofstream(study / "patient" / "docs" / "readme.txt") << "not DICOM either\n"; }
   fs::create_symlink("part1", study / "patient" / "link_to_part1");
   fs::permissions(study / "patient" / "part2" / "IM7", fs::perms::owner_read | fs::perms::group_read);
   fs::permissions(study / "patient" / "part2",
@@ -112,10 +119,15 @@ TEST(InputTree, CommandsLeaveEveryFileAndFolderAsTheyWere) {
            "batch " + in + " --preset bone,skin --format 3mf --out " + (out / "batch_3mf").string(),
        }) {
     const auto r = run_cli(command);
-    // The tree holds a localizer-only study too: batch says "some failed" (5) for it.
+    // The tree holds a localizer-only study and damaged files too: batch says "some failed"
+    // (5) for them.
     EXPECT_EQ(r.exit_code, command.rfind("batch", 0) == 0 ? 5 : 0) << command << "\n" << r.out
                                                                    << r.err;
   }
+  // The batch did read the folders without a study (and, above, left them as they were).
+  const std::string summary = read_file_bytes(out / "batch" / "summary.json");
+  EXPECT_NE(summary.find("\"no_study\": 1,"), std::string::npos) << summary;
+  EXPECT_NE(summary.find("\"no_ct\": 1"), std::string::npos) << summary;
   const auto after = snapshot(study);
   EXPECT_EQ(after.size(), before.size());
   for (const auto& [path, entry] : before) {

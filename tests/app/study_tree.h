@@ -12,11 +12,15 @@
 //   root/siteC/studyE/s1                     study E: one plain series
 //
 // Every series holds a ball (bone inside air) so bone and skin presets find a surface.
+//
+// Folders no study comes of (issue 16): write_damaged_dicom (a DICM preamble, then garbage),
+// write_truncated_copy (an interrupted copy of a slice) and write_mr_series (not CT).
 #pragma once
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "ct_writer/ct_writer.h"
@@ -73,6 +77,44 @@ inline void write_test_series(const std::filesystem::path& dir, const std::strin
     spec.convolution_kernel = s.kernel;
     if (s.localizer) spec.image_type = "ORIGINAL\\PRIMARY\\LOCALIZER";
     ct_writer::write_ct_slice(spec, dir / ("im" + std::to_string(k)));
+  }
+}
+
+// 128 zero bytes, "DICM", a meta element longer than the file, garbage: damaged DICOM.
+inline void write_damaged_dicom(const std::filesystem::path& file) {
+  std::string bytes(128, '\0');
+  bytes += "DICM";
+  bytes += std::string("\x02\x00\x10\x00UI\xff\x7f", 8);
+  bytes += "garbage garbage garbage";
+  std::filesystem::create_directories(file.parent_path());
+  std::ofstream(file, std::ios::binary) << bytes;
+}
+
+// The first half of `source`: a copy cut off in the pixel data (the headers, with the
+// patient's name, are all there).
+inline void write_truncated_copy(const std::filesystem::path& source,
+                                 const std::filesystem::path& file) {
+  std::ifstream in(source, std::ios::binary);
+  std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  bytes.resize(bytes.size() / 2);
+  std::filesystem::create_directories(file.parent_path());
+  std::ofstream(file, std::ios::binary) << bytes;
+}
+
+// `slices` MR images (MR Image Storage, modality MR): refused unless --allow-non-ct.
+inline void write_mr_series(const std::filesystem::path& dir, const std::string& seed, int slices) {
+  ct_writer::SeriesLayout layout;
+  layout.uid_seed = seed;
+  layout.columns = 16;
+  layout.rows = 16;
+  layout.slices = slices;
+  layout.hu = [](int, int, int) { return 100.0; };
+  std::filesystem::create_directories(dir);
+  auto specs = ct_writer::make_axial_series(layout);
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    specs[k].sop_class_uid = "1.2.840.10008.5.1.4.1.1.4";
+    specs[k].modality = "MR";
+    ct_writer::write_ct_slice(specs[k], dir / ("mr" + std::to_string(k)));
   }
 }
 

@@ -75,3 +75,33 @@ TEST(FileKind, BareDataSetsAreStillRead) {
 }
 
 }  // namespace
+
+// The batch names the modality that alone refused a file ("4 MR images, not CT (use
+// --allow-non-ct)"), without parsing the reason's text; other refusals leave it empty.
+TEST(FileKind, TheRefusedModalityIsGivenOnlyWhenItAloneRefusedTheFile) {
+  ct_writer::CtSliceSpec mr;
+  mr.sop_class_uid = "1.2.840.10008.5.1.4.1.1.4";  // MR Image Storage
+  mr.modality = "MR";
+  const fs::path file = fs::temp_directory_path() / "typemerge_file_kind_mr";
+  ct_writer::write_ct_slice(mr, file);
+  HeaderReadResult read = read_headers(file, {});
+  EXPECT_EQ(read.kind, FileKind::other_image);
+  EXPECT_EQ(read.refused_modality, "MR") << read.skip_reason;
+  read = read_headers(file, {.allow_non_ct_modality = true});
+  EXPECT_TRUE(read.skip_reason.empty()) << read.skip_reason;
+  EXPECT_TRUE(read.refused_modality.empty());
+
+  ct_writer::CtSliceSpec secondary = mr;
+  secondary.sop_class_uid = "1.2.840.10008.5.1.4.1.1.7";  // Secondary Capture, modality MR
+  ct_writer::write_ct_slice(secondary, file);
+  read = read_headers(file, {});
+  EXPECT_EQ(read.skip_reason, "secondary capture image");
+  EXPECT_TRUE(read.refused_modality.empty());
+  std::string damaged(128, '\0');
+  damaged += "DICM";
+  damaged += std::string("\x02\x00\x10\x00UI\xff\x7f", 8);  // as in APreambleThenGarbage...
+  damaged += "garbage";
+  read = read_headers(write_temp("refused_modality_damaged", damaged), {});
+  EXPECT_EQ(read.kind, FileKind::unreadable);
+  EXPECT_TRUE(read.refused_modality.empty());
+}
