@@ -167,19 +167,21 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     // Filled at once when asked: one shell, without searching which cavities are its own.
     const auto cavities = fill ? mesh::Cavities::fill : mesh::Cavities::keep;
     run_step(result, fill ? "keep largest solid, cavities filled" : "keep largest solid",
-             [cavities](core::TriangleMesh& mesh) {
-               return component_details(mesh::keep_largest_component(mesh, cavities));
+             [&result, cavities](core::TriangleMesh& mesh) {
+               return component_details(
+                   mesh::keep_largest_component(mesh, cavities, &result.steps.back().check));
              });
   }
   if (min_volume > 0) {
     run_step(result, "remove components under " + number(min_volume) + " mm3",
              [&](core::TriangleMesh& mesh) {
-               return component_details(mesh::remove_small_components(mesh, min_volume));
+               return component_details(
+                   mesh::remove_small_components(mesh, min_volume, &result.steps.back().check));
              });
   }
   if (fill && !keep_largest) {
-    run_step(result, "fill cavities", [](core::TriangleMesh& mesh) {
-      return component_details(mesh::fill_cavities(mesh));
+    run_step(result, "fill cavities", [&result](core::TriangleMesh& mesh) {
+      return component_details(mesh::fill_cavities(mesh, &result.steps.back().check));
     });
   }
   std::optional<std::size_t> crossings;  // of the surface as it stands, once counted

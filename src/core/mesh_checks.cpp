@@ -194,6 +194,20 @@ MeshCheck check_mesh(const TriangleMesh& mesh) {
   return check;
 }
 
+MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
+                                          std::size_t removed_components) {
+  assert(before.closed_manifold() && removed_components <= before.components);
+  MeshCheck check;
+  measure_triangles(mesh, check);
+  check.vertices = mesh.positions.size();
+  check.edges = 3 * check.triangles / 2;
+  check.components = before.components - removed_components;
+  check.euler_characteristic = static_cast<std::int64_t>(check.vertices) -
+                               static_cast<std::int64_t>(check.edges) +
+                               static_cast<std::int64_t>(check.triangles);
+  return check;
+}
+
 namespace detail {
 
 MeshCheck check_mesh_by_sorting(const TriangleMesh& mesh) {

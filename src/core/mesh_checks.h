@@ -40,6 +40,17 @@ struct MeshCheck {
 // Precondition: every index < mesh.positions.size().
 MeshCheck check_mesh(const TriangleMesh& mesh);
 
+// check_mesh of `mesh` when it is a mesh that check_mesh found closed and manifold (`before`)
+// with `removed_components` whole components taken out and no vertex left unused: every
+// edge and vertex link lies in one component, so what is left is closed and manifold too and
+// its topology follows from the counts (edges = 3 T / 2); only area and volume are summed
+// again, in check_mesh's order, so the result equals check_mesh's exactly. The finishing
+// steps remove components after an extraction that was just checked: this spares a second
+// full check (about a tenth of a one-thread bone conversion, perf). Precondition:
+// before.closed_manifold().
+MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
+                                          std::size_t removed_components);
+
 namespace detail {
 // The same result by the simplest means (a global sort, a vector per vertex): the oracle of
 // the tests.

@@ -84,7 +84,8 @@ Components label_components(const core::TriangleMesh& mesh) {
 
 // Removes the triangles whose component is marked in `remove`, then unused vertices.
 ComponentReport remove_components(core::TriangleMesh& mesh, const Components& c,
-                                  const std::vector<bool>& remove) {
+                                  const std::vector<bool>& remove,
+                                  const core::MeshCheck* checked) {
   ComponentReport report;
   report.components_before = c.count;
   for (std::size_t label = 0; label < c.count; ++label) {
@@ -105,7 +106,17 @@ ComponentReport remove_components(core::TriangleMesh& mesh, const Components& c,
     mesh.triangles.resize(next);
     remove_unreferenced_vertices(mesh);
   }
-  report.validity = check_validity(mesh);
+  const bool known = checked != nullptr && checked->closed_manifold() &&
+                     checked->triangles == c.of_triangle.size() &&
+                     checked->components == c.count;
+  if (!known) {
+    report.validity = check_validity(mesh);
+  } else if (report.removed_components == 0) {
+    report.validity = {*checked};
+  } else {
+    report.validity = {
+        core::check_after_removing_components(mesh, *checked, report.removed_components)};
+  }
   return report;
 }
 
@@ -272,7 +283,8 @@ class Containment {
 
 }  // namespace
 
-ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities cavities) {
+ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities cavities,
+                                       const core::MeshCheck* checked) {
   const Components c = label_components(mesh);
   // The largest solid: the outward shell enclosing the most volume. Cavity walls (negative
   // volume) compete only when there is no outward shell at all (an inside-out mesh).
@@ -290,9 +302,9 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities caviti
     }
   }
   std::vector<bool> remove(c.count, true);
-  if (c.count == 0) return remove_components(mesh, c, remove);
+  if (c.count == 0) return remove_components(mesh, c, remove, checked);
   remove[largest] = false;
-  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove);
+  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove, checked);
 
   // Its cavities stay: a cavity wall whose innermost enclosing outward shell is the largest.
   // (A cavity of an island floating inside one of its cavities belongs to the island.)
@@ -307,20 +319,21 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities caviti
     }
     remove[cavity] = nearer_container;
   }
-  return remove_components(mesh, c, remove);
+  return remove_components(mesh, c, remove, checked);
 }
 
-ComponentReport remove_small_components(core::TriangleMesh& mesh, double min_volume) {
+ComponentReport remove_small_components(core::TriangleMesh& mesh, double min_volume,
+                                        const core::MeshCheck* checked) {
   assert(min_volume >= 0.0);
   const Components c = label_components(mesh);
   std::vector<bool> remove(c.count);
   for (std::size_t label = 0; label < c.count; ++label) {
     remove[label] = std::abs(c.volume[label]) < min_volume;
   }
-  return remove_components(mesh, c, remove);
+  return remove_components(mesh, c, remove, checked);
 }
 
-ComponentReport fill_cavities(core::TriangleMesh& mesh) {
+ComponentReport fill_cavities(core::TriangleMesh& mesh, const core::MeshCheck* checked) {
   const Components c = label_components(mesh);
   std::vector<bool> remove(c.count);
   for (std::size_t label = 0; label < c.count; ++label) remove[label] = c.volume[label] < 0.0;
@@ -335,7 +348,7 @@ ComponentReport fill_cavities(core::TriangleMesh& mesh) {
       }
     }
   }
-  return remove_components(mesh, c, remove);
+  return remove_components(mesh, c, remove, checked);
 }
 
 }  // namespace typemerge::mesh

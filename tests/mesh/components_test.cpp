@@ -152,5 +152,54 @@ TEST(Components, FillCavitiesLeavesSolidsAlone) {
   EXPECT_EQ(report.components_after, 3u);
 }
 
+void expect_same_check(const core::MeshCheck& a, const core::MeshCheck& b) {
+  EXPECT_EQ(a.vertices, b.vertices);
+  EXPECT_EQ(a.edges, b.edges);
+  EXPECT_EQ(a.triangles, b.triangles);
+  EXPECT_EQ(a.boundary_edges, b.boundary_edges);
+  EXPECT_EQ(a.non_manifold_edges, b.non_manifold_edges);
+  EXPECT_EQ(a.inconsistent_edges, b.inconsistent_edges);
+  EXPECT_EQ(a.non_manifold_vertices, b.non_manifold_vertices);
+  EXPECT_EQ(a.degenerate_triangles, b.degenerate_triangles);
+  EXPECT_EQ(a.components, b.components);
+  EXPECT_EQ(a.euler_characteristic, b.euler_characteristic);
+  EXPECT_EQ(a.volume, b.volume);  // the same sums in the same order: bit for bit
+  EXPECT_EQ(a.area, b.area);
+}
+
+// Given the check of their input, the steps derive their result's instead of checking it
+// again: it must be exactly check_mesh's, for every step, whether or not they removed
+// anything; a check that does not fit the input (not clean, or of another mesh) is not used.
+TEST(Components, AKnownCheckGivesTheResultsCheckExactly) {
+  const core::TriangleMesh balls = test::balls(kN, {kSpeck, kBig, kSmall, kMedium});
+  const core::TriangleMesh shell =
+      test::hollow_shell(kN, kBig, 12.0, 7.0, {Ball{16.3, 16.2, 16.1, 3.0}});
+  for (const core::TriangleMesh* input : {&balls, &shell}) {
+    const core::MeshCheck before = core::check_mesh(*input);
+    ASSERT_TRUE(before.closed_manifold());
+    for (int step = 0; step < 5; ++step) {
+      SCOPED_TRACE(step);
+      core::TriangleMesh mesh = *input;
+      ComponentReport report;
+      if (step == 0) report = keep_largest_component(mesh, Cavities::keep, &before);
+      if (step == 1) report = keep_largest_component(mesh, Cavities::fill, &before);
+      if (step == 2) report = remove_small_components(mesh, 100.0, &before);
+      if (step == 3) report = remove_small_components(mesh, 0.0, &before);  // removes nothing
+      if (step == 4) report = fill_cavities(mesh, &before);
+      expect_same_check(report.validity.check, core::check_mesh(mesh));
+    }
+  }
+  // A check of something else (another mesh, a defect) is ignored, not trusted.
+  core::TriangleMesh mesh = balls;
+  core::MeshCheck wrong = core::check_mesh(shell);
+  ComponentReport report = remove_small_components(mesh, 100.0, &wrong);
+  expect_same_check(report.validity.check, core::check_mesh(mesh));
+  mesh = balls;
+  wrong = core::check_mesh(balls);
+  wrong.boundary_edges = 1;
+  report = remove_small_components(mesh, 100.0, &wrong);
+  expect_same_check(report.validity.check, core::check_mesh(mesh));
+}
+
 }  // namespace
 }  // namespace typemerge::mesh
