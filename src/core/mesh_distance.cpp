@@ -263,6 +263,33 @@ MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMes
   return out;
 }
 
+std::vector<float> point_to_mesh_distances(std::span<const std::array<float, 3>> points,
+                                           const TriangleMesh& to, unsigned threads) {
+  std::vector<float> distances(points.size(), std::numeric_limits<float>::infinity());
+  if (points.empty() || to.triangles.empty()) return distances;
+  const TriangleGrid grid(to);
+  constexpr std::size_t kChunk = 4096;
+  const std::size_t chunks = (points.size() + kChunk - 1) / kChunk;
+  const unsigned n_threads = detail::resolve_threads(threads);
+  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
+  std::vector<std::uint32_t> queries(n_threads, 0);
+  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
+    std::vector<std::uint32_t>& stamp = stamps[w];
+    std::uint32_t& query = queries[w];
+    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
+    const std::size_t end = std::min(points.size(), (k + 1) * kChunk);
+    for (std::size_t v = k * kChunk; v < end; ++v) {
+      if (++query == 0) {
+        std::fill(stamp.begin(), stamp.end(), 0);
+        query = 1;
+      }
+      distances[v] =
+          static_cast<float>(std::sqrt(grid.nearest_squared(to_p3(points[v]), stamp, query)));
+    }
+  });
+  return distances;
+}
+
 double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads) {
   return vertex_to_mesh_distance(from, to, threads).max;
 }

@@ -15,6 +15,8 @@
 
 #include <array>
 #include <cstddef>
+#include <span>
+#include <vector>
 
 #include "core/mesh.h"
 
@@ -30,6 +32,11 @@ struct MeshDistance {
 // an empty `to` (with a non-empty `from`) gives infinity. threads: 0 = hardware concurrency.
 MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
                                      unsigned threads = 0);
+
+// The distance from each point to the surface of `to` (rounded to float), in order; infinity
+// for every point when `to` has no triangle. Same grid and cost as vertex_to_mesh_distance.
+std::vector<float> point_to_mesh_distances(std::span<const std::array<float, 3>> points,
+                                           const TriangleMesh& to, unsigned threads = 0);
 
 // vertex_to_mesh_distance(from, to).max.
 double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads = 0);

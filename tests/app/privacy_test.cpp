@@ -169,6 +169,8 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
       "convert " + in + " --preset bone,skin -o " + (out / "surfaces").string() + " --preview " +
           "--report " + (out / "report.json").string(),
       "convert " + in + " --iso 300 --ascii -o " + (out / "ascii.stl").string(),
+      "convert " + in + " --iso auto --hollow 2 --allow-non-ct -o " + (out / "hollow.stl").string() +
+          " --report " + (out / "hollow.json").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.ply").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.obj").string(),
       "batch " + batch_root.string() + " --preset bone,skin --preview --out " +
@@ -191,9 +193,10 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
     ++files;
     for (auto& l : leaks(read_file_bytes(entry.path()), name)) found.push_back(l);
   }
-  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, PLY, OBJ; batch: bone and skin STL
-  // + PNG, summary JSON + CSV, the study's manifest record, the event log.
-  EXPECT_EQ(files, 18u);
+  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, hollow STL + report, PLY, OBJ;
+  // batch: bone and skin STL + PNG, summary JSON + CSV, the study's manifest record, the
+  // event log.
+  EXPECT_EQ(files, 20u);
   for (const std::string& l : found) ADD_FAILURE() << "leak: " << l;
 }
 
