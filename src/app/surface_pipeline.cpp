@@ -242,6 +242,8 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
     core::InnerWallOptions wall;
     wall.wall_mm = options.hollow_mm;
     wall.threads = options.threads;
+    wall.fill_enclosed = options.finish.enabled &&
+                         options.finish.fill_cavities.value_or(spec.fill_cavities);
     // How far the finished surface may be from the voxels' marching cubes: type merging's
     // half voxel and a light smoothing within one voxel, plus the decimation's bound.
     const auto& g = volume.geometry();

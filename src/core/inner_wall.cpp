@@ -51,6 +51,44 @@ double signed_volume(const TriangleMesh& mesh, const std::vector<std::uint32_t>&
   return volume / 6.0;
 }
 
+// Outside samples (0) that no 6-connected path of outside samples joins to the volume's
+// border become inside (infinity): the air pockets a cavity-filling finish removed.
+void fill_enclosed_outside(std::vector<float>& d, const VolumeSize& size) {
+  std::vector<std::uint8_t> reached(d.size(), 0);
+  std::vector<std::size_t> stack;
+  const std::int64_t nx = size.nx, ny = size.ny, nz = size.nz;
+  auto push = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    const auto v = static_cast<std::size_t>(i + nx * (j + ny * k));
+    if (d[v] == 0.0f && reached[v] == 0) {
+      reached[v] = 1;
+      stack.push_back(v);
+    }
+  };
+  for (std::int64_t k = 0; k < nz; ++k) {
+    for (std::int64_t j = 0; j < ny; ++j) {
+      for (std::int64_t i = 0; i < nx; ++i) {
+        if (i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1) push(i, j, k);
+      }
+    }
+  }
+  while (!stack.empty()) {
+    const std::size_t v = stack.back();
+    stack.pop_back();
+    const auto i = static_cast<std::int64_t>(v) % nx;
+    const auto j = (static_cast<std::int64_t>(v) / nx) % ny;
+    const auto k = static_cast<std::int64_t>(v) / (nx * ny);
+    if (i > 0) push(i - 1, j, k);
+    if (i + 1 < nx) push(i + 1, j, k);
+    if (j > 0) push(i, j - 1, k);
+    if (j + 1 < ny) push(i, j + 1, k);
+    if (k > 0) push(i, j, k - 1);
+    if (k + 1 < nz) push(i, j, k + 1);
+  }
+  for (std::size_t v = 0; v < d.size(); ++v) {
+    if (d[v] == 0.0f && reached[v] == 0) d[v] = std::numeric_limits<float>::infinity();
+  }
+}
+
 }  // namespace
 
 namespace detail {
@@ -100,6 +138,7 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
     d.resize(values.size());
     constexpr float kFar = std::numeric_limits<float>::infinity();
     for (std::size_t v = 0; v < values.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
+    if (options.fill_enclosed) fill_enclosed_outside(d, size);
     squared_distance_transform(d, size, spacing, /*seeds_beyond_border=*/true, options.threads);
   }
 
@@ -129,7 +168,8 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
       for (std::int64_t i = 0; i < size.nx; ++i) {
         const auto v = static_cast<std::size_t>(i + size.nx * (j + size.ny * k));
         const double d = std::sqrt(static_cast<double>(f[v]));
-        if (d >= band_lo && d <= band_hi) {
+        // Outside samples (D = 0) stay 0 whatever the band: they are below the level.
+        if (d > 0 && d >= band_lo && d <= band_hi) {
           band_index.push_back(static_cast<std::uint32_t>(v));
           const Vec3 p = geometry.apply(double(i), double(j), double(k));
           points.positions.push_back(
@@ -143,8 +183,10 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   s.band_samples = band_index.size();
   // Exact distances of the band samples to the outer surface.
   {
+    // A sample farther than the band's top from the outer surface is above the level
+    // whatever its exact distance: the search stops there.
     const std::vector<float> exact =
-        point_to_mesh_distances(points.positions, outer, options.threads);
+        point_to_mesh_distances(points.positions, outer, options.threads, band_hi * sigma_max + diagonal);
     for (std::size_t b = 0; b < band_index.size(); ++b) f[band_index[b]] = exact[b];
     points = {};
     band_index = {};

@@ -5,7 +5,8 @@
 // The inner wall is the iso-surface at level wall_mm of F, the distance from a voxel centre
 // to the outer surface, extracted with the consistent marching cubes (closed, manifold):
 //   1. mask: the samples inside the outer surface's extraction (value >= iso), the same
-//      samples the outer surface was extracted from;
+//      samples the outer surface was extracted from; with fill_enclosed, with the enclosed
+//      air pockets filled as the finishing filled the surface's cavities;
 //   2. D: the exact Euclidean distance (mm) from each sample to the nearest outside sample,
 //      everything beyond the volume border outside (distance_transform.h, anisotropic);
 //   3. F: D counts voxel centres, but the outer surface lies between them (and the finishing
@@ -31,8 +32,9 @@
 // Band: samples with (wall_mm − m)/σ_max <= D <= (wall_mm + r + m)/σ_min, where r is the voxel
 // diagonal (the farthest a marching-cubes surface point is from an outside voxel centre), m =
 // outer_deviation_mm and σ bound the stretch of a sheared grid (1 for an orthogonal one).
-// Memory: 4 bytes a voxel (the field, in which D is computed; freed on return) + 16 bytes a
-// band sample + the inner mesh. Cost: the distance
+// Memory: 4 bytes a voxel (the field, in which D is computed; freed on return), 1 + a stack for
+// fill_enclosed, + 16 bytes a band sample + the inner mesh. Exact distances are searched up
+// to the band's top only. Cost: the distance
 // transform (three passes over the volume) + about 1 µs per band sample.
 #pragma once
 
@@ -49,6 +51,9 @@ struct InnerWallOptions {
   // merging's ε, smoothing, decimation error), in mm: widens the band.
   double outer_deviation_mm = 0;
   unsigned threads = 0;  // 0 = hardware concurrency; the result does not depend on it
+  // The outer surface's cavities were filled: outside samples not joined to the volume's
+  // border (6-connected) count as inside, so the air pockets inside get no wall.
+  bool fill_enclosed = false;
 };
 
 struct InnerWallStats {
