@@ -371,7 +371,7 @@ StageFigures run_convert_once(const RunSettings& settings) {
   if (settings.surface.preset)
     options.presets = {settings.surface.name};
   else
-    options.iso = settings.surface.lo;
+    options.iso = std::to_string(settings.surface.lo);  // convert parses it as --iso
   options.output =
       (settings.out_dir / ("pipeline_bench_convert_" + settings.surface.name + ".stl")).string();
   options.threads = settings.threads;

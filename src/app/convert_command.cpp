@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -30,6 +31,7 @@
 #include "preprocess/body_mask.h"
 #include "preprocess/crop.h"
 #include "preprocess/denoise.h"
+#include "preprocess/otsu_threshold.h"
 #include "preprocess/resample.h"
 
 namespace typemerge::app {
@@ -142,6 +144,19 @@ void center_together(std::vector<SurfaceResult>& results) {
   }
 }
 
+// Why the volume's values are not Hounsfield units (a modality other than CT, or values without
+// air near -1000), or empty when they are.
+std::string not_hounsfield_reason(const dicom::SeriesInfo& series, const dicom::LoadedSeries& loaded) {
+  if (!series.modality.empty() && series.modality != "CT") {
+    return "the series is " + series.modality + ", not CT";
+  }
+  if (!dicom::hounsfield_plausibility_warning(loaded.min_hu, loaded.max_hu).empty()) {
+    return "its values (" + preprocess::detail::format_number(loaded.min_hu) + " to " +
+           preprocess::detail::format_number(loaded.max_hu) + ") have no air near -1000 HU";
+  }
+  return {};
+}
+
 }  // namespace
 
 std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
@@ -157,10 +172,22 @@ std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
     if (std::isfinite(preset->hi)) spec.hi = preset->hi;
     specs.push_back(spec);
   }
-  if (options.iso) {
+  if (options.iso == "auto") {
+    // The value and the label are filled in once the volume is known (auto_iso_spec).
+    SurfaceSpec spec{"iso", "iso auto", 0, std::nullopt, false, 0, false, false};
+    spec.auto_iso = true;
+    specs.push_back(spec);
+  } else if (!options.iso.empty()) {
+    // from_chars: the C locale's '.', whatever the environment's locale.
+    double iso = 0;
+    const char* end = options.iso.data() + options.iso.size();
+    const auto parsed = std::from_chars(options.iso.data(), end, iso);
+    if (parsed.ec != std::errc() || parsed.ptr != end || !std::isfinite(iso)) {
+      throw CommandError{kExitUsage, "--iso wants a number or 'auto', not '" + options.iso + "'"};
+    }
     char label[64];
-    std::snprintf(label, sizeof label, "iso %g HU", *options.iso);
-    specs.push_back({"iso", label, *options.iso, std::nullopt, false, 0, false, false,
+    std::snprintf(label, sizeof label, "iso %g HU", iso);
+    specs.push_back({"iso", label, iso, std::nullopt, false, 0, false, false,
                      io::kSurfaceGrey});
   }
   if (options.window.size() == 2) {
@@ -171,7 +198,7 @@ std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
                      false, io::kSurfaceGrey});
   }
   if (specs.empty()) {
-    throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU or --window LO,HI"};
+    throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU|auto or --window LO,HI"};
   }
   return specs;
 }
@@ -202,19 +229,28 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
   auto* preset = command->add_option("--preset", options.presets,
                                      "Tissue preset(s), comma-separated (see `typemerge presets`)")
                      ->delimiter(',');
-  auto* iso = command->add_option("--iso", options.iso, "Iso value in HU (inside: value >= iso)");
+  auto* iso = command->add_option("--iso", options.iso,
+                                  "Iso value in HU (inside: value >= iso), or auto: Otsu's "
+                                  "threshold of the volume (air against tissue: a skin-like "
+                                  "surface; for any modality)");
   auto* window = command->add_option("--window", options.window,
                                      "HU window LO,HI: the surface around voxels inside it")
                      ->delimiter(',')
                      ->expected(2);
   preset->excludes(iso)->excludes(window);
   iso->excludes(window);
+  auto* hollow = command->add_option(
+      "--hollow", options.hollow_mm,
+      "Hollow each surface to a shell of this wall thickness in mm (an inner wall added as a "
+      "cavity after finishing; the report states the material saved)");
+  hollow->check(CLI::PositiveNumber);
   command->add_option("--algorithm", options.algorithm,
                       "tm: type merging (default); mc: consistent marching cubes; classic: "
                       "fixed-table marching cubes (shows the holes of ambiguous cubes)")
       ->check(CLI::IsMember({"tm", "mc", "classic"}));
   command->add_flag("--open-borders", options.open_borders,
-                    "Leave surfaces open where they meet the volume border (default: closed)");
+                    "Leave surfaces open where they meet the volume border (default: closed)")
+      ->excludes(hollow);
   command->add_flag("--check-intersections", options.check_intersections,
                     "Count crossing triangle pairs (exact) in each output and in the report; "
                     "a smoothing or reduction step that adds crossings is undone");
@@ -273,7 +309,8 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   auto progress = [&](const std::string& what) {
     if (interactive) log << "... " << what << "\n" << std::flush;
   };
-  const std::vector<SurfaceSpec> specs = surface_specs(options);
+  std::vector<SurfaceSpec> specs = surface_specs(options);
+  std::vector<std::string> notes;  // what was adapted to the data, for the log and the report
   // A stated bound on every run, not only when asked: three quarters of the physical memory
   // by default.
   std::uint64_t max_memory = default_memory_budget();
@@ -337,8 +374,20 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   core::Volume volume = std::move(loaded.volume);
   ordered_json steps = ordered_json::array();
   const bool any_preset = !options.presets.empty();
+  // Steps that assume Hounsfield units (table removal, the tissue crop's -400 HU) are skipped
+  // or adapted, with a note, for another modality or for values that do not look like HU.
+  const std::string not_hu_reason = not_hounsfield_reason(series, loaded);
+  const std::string units = not_hu_reason.empty() ? " HU" : "";
+  auto note = [&](const std::string& text) {
+    log << "note: " << text << "\n";
+    notes.push_back(text);
+  };
   try {
-    if (options.remove_table || (any_preset && !options.keep_table)) {
+    if ((options.remove_table || (any_preset && !options.keep_table)) && !not_hu_reason.empty()) {
+      note("table removal skipped: " + not_hu_reason + ", and it works in HU");
+      steps.push_back({{"step", "remove_outside_body"}, {"skipped", true},
+                       {"description", "skipped: " + not_hu_reason}});
+    } else if (options.remove_table || (any_preset && !options.keep_table)) {
       const auto start = Clock::now();
       auto step = preprocess::remove_outside_body(std::move(volume));
       volume = std::move(step.volume);
@@ -357,7 +406,13 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     }
     if (options.crop_to_tissue) {
       const auto start = Clock::now();
-      auto step = preprocess::crop_to_tissue(volume, {});
+      preprocess::TissueCropOptions crop;
+      if (!not_hu_reason.empty()) {
+        crop.threshold_hu = static_cast<float>(preprocess::otsu_threshold(volume).threshold);
+        note("tissue crop at Otsu's threshold " + preprocess::detail::format_number(crop.threshold_hu) +
+             " instead of -400 HU: " + not_hu_reason);
+      }
+      auto step = preprocess::crop_to_tissue(volume, crop);
       volume = std::move(step.volume);
       steps.push_back(record_json(step.record, ms_since(start)));
     }
@@ -389,6 +444,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   pipeline.threads = options.threads;
   pipeline.finish = options.finish_options;
   pipeline.check_intersections = options.check_intersections;
+  pipeline.hollow_mm = options.hollow_mm;
   pipeline.finish.enabled = options.finish != "none";
   pipeline.finish.min_component_mm3 = options.min_component_mm3;
   if (options.fill_cavities) pipeline.finish.fill_cavities = true;
@@ -398,7 +454,37 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                           {"smooth_iterations", pipeline.finish.smooth_iterations},
                           {"reduce_to", pipeline.finish.reduce_to_triangles},
                           {"max_error_mm", pipeline.finish.max_error_mm},
-                          {"check_intersections", options.check_intersections}};
+                          {"check_intersections", options.check_intersections},
+                          {"hollow_mm", options.hollow_mm > 0 ? ordered_json(options.hollow_mm)
+                                                              : ordered_json(nullptr)}};
+
+  // --iso auto: Otsu's threshold of the volume as it will be meshed.
+  for (SurfaceSpec& spec : specs) {
+    if (!spec.auto_iso) continue;
+    const auto start = Clock::now();
+    preprocess::OtsuThreshold otsu;
+    try {
+      otsu = preprocess::otsu_threshold(volume);
+    } catch (const std::invalid_argument& error) {
+      throw CommandError{kExitInputRefused, std::string("--iso auto: ") + error.what()};
+    }
+    const std::string value = preprocess::detail::format_number(otsu.threshold);
+    spec.lo = otsu.threshold;
+    spec.label = "iso auto (Otsu) " + value + units;
+    report["auto_iso"] = {{"method", "otsu"},
+                          {"threshold", otsu.threshold},
+                          {"units", units.empty() ? "volume values" : "HU"},
+                          {"lower_class_mean", otsu.lower_mean},
+                          {"upper_class_mean", otsu.upper_mean},
+                          {"upper_class_fraction", otsu.upper_fraction},
+                          {"separability", otsu.separability},
+                          {"bin_width", otsu.bin_width},
+                          {"ms", ms_since(start)}};
+    log << "iso auto: Otsu's threshold " << value << units << " (class means "
+        << preprocess::detail::format_number(otsu.lower_mean) << " and "
+        << preprocess::detail::format_number(otsu.upper_mean) << units << ")\n";
+  }
+  report["notes"] = notes;
 
   ordered_json surfaces = ordered_json::array();
   // Every refusal before any work; then the surfaces, which are independent, are made
@@ -495,6 +581,25 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                            {"validity", check_json(step.check)}});
     }
     const core::MeshCheck& final_check = result.steps.back().check;
+    ordered_json hollow = nullptr;
+    std::string hollow_text;
+    if (result.hollow) {
+      const HollowSummary& h = *result.hollow;
+      const double percent = h.outer_volume > 0 ? 100.0 * h.hollow_volume / h.outer_volume : 0.0;
+      hollow = {{"wall_mm", h.wall_mm},
+                {"outer_volume_ml", h.outer_volume / 1000.0},
+                {"inner_volume_ml", h.hollow_volume / 1000.0},
+                {"material_volume_ml", final_check.volume / 1000.0},
+                {"saved_ml", h.hollow_volume / 1000.0},
+                {"saved_percent", percent},
+                {"inner_components", h.inner_components},
+                {"inner_components_dropped_outside", h.dropped_outside},
+                {"inner_components_dropped_small", h.dropped_small}};
+      char text[160];
+      std::snprintf(text, sizeof text, ", hollow (wall %g mm): %.1f mL of %.1f saved (%.0f%%)",
+                    h.wall_mm, h.hollow_volume / 1000.0, h.outer_volume / 1000.0, percent);
+      hollow_text = text;
+    }
     const core::BoundingBox box = core::bounding_box(result.mesh);
     char colour[8];
     std::snprintf(colour, sizeof colour, "#%02X%02X%02X", spec.srgb[0], spec.srgb[1],
@@ -510,6 +615,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                         {"volume_ml", final_check.volume / 1000.0},
                         {"area_mm2", final_check.area},
                         {"bounding_box_lps_mm", {box.min, box.max}},
+                        {"hollow", hollow},
                         {"validity", check_json(final_check)},
                         {"self_intersecting_pairs",
                          crossings[s] ? ordered_json(*crossings[s]) : ordered_json(nullptr)},
@@ -522,10 +628,10 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
             ? ", no crossing triangles"
             : ", " + std::to_string(*crossings[s]) + " CROSSING pair(s)";
     char line[512];
-    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s%s, written to %s\n",
+    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s%s%s, written to %s\n",
                   spec.label.c_str(), result.mesh.triangles.size(), final_check.volume / 1000.0,
                   final_check.closed_manifold() ? "closed manifold" : "NOT closed manifold",
-                  crossing_text.c_str(), output.string().c_str());
+                  crossing_text.c_str(), hollow_text.c_str(), output.string().c_str());
     log << line;
   }
   report["surfaces"] = surfaces;

@@ -19,7 +19,7 @@ struct ConvertOptions {
   std::string series_id;
   std::string output;
   std::vector<std::string> presets;
-  std::optional<double> iso;
+  std::string iso;  // an iso value in the volume's units, "auto" (Otsu), or empty: not given
   std::vector<double> window;  // lo, hi
   bool open_borders = false;
   std::string algorithm = "tm";
@@ -42,6 +42,7 @@ struct ConvertOptions {
   bool center = false;
   bool show_descriptions = false;  // put the free-text SeriesDescription in the report
   bool check_intersections = false;  // count crossing triangle pairs of each output (CGAL)
+  double hollow_mm = 0;  // > 0: hollow each surface to a shell of this wall thickness
 };
 
 void add_convert_command(CLI::App& app, ConvertOptions& options);

@@ -1,10 +1,12 @@
 #include "app/surface_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <optional>
 
+#include "core/inner_wall.h"
 #include "core/marching_cubes.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
@@ -119,6 +121,10 @@ void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
                             " pair(s) of crossing triangles");
 }
 
+void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const PipelineOptions& options);
+void hollow_surface(SurfaceResult& result, const core::Volume& volume, const SurfaceSpec& spec,
+                    const PipelineOptions& options);
+
 }  // namespace
 
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
@@ -157,8 +163,20 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     return StepOutput{details, std::nullopt};
   });
 
+  if (options.finish.enabled && !result.mesh.empty()) finish_surface(result, spec, options);
+  if (options.hollow_mm > 0 && !result.mesh.empty()) hollow_surface(result, volume, spec, options);
+  const bool finished = (options.finish.enabled || options.hollow_mm > 0) && !result.mesh.empty();
+  if (finished && !result.steps.back().check.closed_manifold()) {
+    const auto problems = mesh::check_validity(result.mesh).problems();
+    for (const auto& p : problems) result.warnings.push_back("final mesh: " + p);
+  }
+  return result;
+}
+
+namespace {
+
+void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const PipelineOptions& options) {
   const FinishOptions& finish = options.finish;
-  if (!finish.enabled || result.mesh.empty()) return result;
 
   const double min_volume = finish.min_component_mm3.value_or(spec.min_component_mm3);
   const bool keep_largest = finish.keep_largest || spec.keep_largest;
@@ -210,11 +228,59 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                         report.validity.check};
     });
   }
-  if (!result.steps.back().check.closed_manifold()) {
-    const auto problems = mesh::check_validity(result.mesh).problems();
-    for (const auto& p : problems) result.warnings.push_back("final mesh: " + p);
-  }
-  return result;
 }
+
+// The inner wall at options.hollow_mm inside the finished surface, appended as a cavity.
+void hollow_surface(SurfaceResult& result, const core::Volume& volume, const SurfaceSpec& spec,
+                    const PipelineOptions& options) {
+  run_step(result, "hollow " + number(options.hollow_mm) + " mm", [&](core::TriangleMesh& mesh) {
+    const bool window = spec.hi.has_value();
+    core::Volume field;
+    if (window) {
+      field = core::window_field(volume, static_cast<float>(spec.lo), static_cast<float>(*spec.hi));
+    }
+    const core::Volume& source = window ? field : volume;
+    const float iso = window ? 0.0f : static_cast<float>(spec.lo);
+    core::InnerWallOptions wall;
+    wall.wall_mm = options.hollow_mm;
+    wall.threads = options.threads;
+    wall.fill_enclosed = options.finish.enabled &&
+                         options.finish.fill_cavities.value_or(spec.fill_cavities);
+    // How far the finished surface may be from the voxels' marching cubes: type merging's
+    // half voxel and a light smoothing within one voxel, plus the decimation's bound.
+    const auto& g = volume.geometry();
+    wall.outer_deviation_mm = std::max({g.spacing(0), g.spacing(1), g.spacing(2)}) +
+                              (options.finish.reduce_to_triangles > 0 || options.finish.max_error_mm > 0
+                                   ? std::max(options.finish.max_error_mm, 0.1)
+                                   : 0.0);
+    const double outer_volume = result.steps.back().check.volume;
+    core::InnerWallStats stats;
+    const core::TriangleMesh inner = core::extract_inner_wall(source, iso, mesh, wall, &stats);
+    field = {};
+    const auto offset = static_cast<std::uint32_t>(mesh.positions.size());
+    mesh.positions.insert(mesh.positions.end(), inner.positions.begin(), inner.positions.end());
+    mesh.normals.insert(mesh.normals.end(), inner.normals.begin(), inner.normals.end());
+    for (const auto& t : inner.triangles) {
+      mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
+    }
+    HollowSummary summary{options.hollow_mm, outer_volume, stats.hollow_volume_mm3,
+                          stats.components - stats.dropped_outside - stats.dropped_small,
+                          stats.dropped_outside, stats.dropped_small};
+    result.hollow = summary;
+    if (inner.empty()) {
+      result.warnings.push_back("hollow: no inner wall, the solid is nowhere thicker than " +
+                                number(2 * options.hollow_mm) + " mm");
+    }
+    return StepOutput{{{"wall_mm", number(options.hollow_mm)},
+                       {"band_samples", std::to_string(stats.band_samples)},
+                       {"inner_components", std::to_string(summary.inner_components)},
+                       {"dropped_outside", std::to_string(stats.dropped_outside)},
+                       {"dropped_small", std::to_string(stats.dropped_small)},
+                       {"hollow_volume_mm3", number(stats.hollow_volume_mm3)}},
+                      std::nullopt};
+  });
+}
+
+}  // namespace
 
 }  // namespace typemerge::app

@@ -27,6 +27,8 @@ struct SurfaceSpec {
   bool fill_cavities = false;    // preset default for finishing
   bool keep_largest = false;     // preset default for finishing
   std::array<std::uint8_t, 3> srgb{};  // display colour of its object in a 3MF package
+  // `--iso auto`: lo is Otsu's threshold of the volume, set once it is preprocessed.
+  bool auto_iso = false;
 };
 
 struct FinishOptions {
@@ -47,6 +49,9 @@ struct PipelineOptions {
   // Count crossing triangle pairs (core/self_intersections.h) after every finishing step that
   // moves vertices (smoothing, decimation) and undo a step that adds any.
   bool check_intersections = false;
+  // --hollow MM: after the finishing steps, the inner wall at MM inside the surface is added
+  // as a cavity (core/inner_wall.h); 0 = solid.
+  double hollow_mm = 0;
 };
 
 struct StepSummary {
@@ -57,8 +62,19 @@ struct StepSummary {
   std::vector<std::pair<std::string, std::string>> details;
 };
 
+// What --hollow did (volumes in mm³).
+struct HollowSummary {
+  double wall_mm = 0;
+  double outer_volume = 0;   // enclosed by the outer surface (the solid model's volume)
+  double hollow_volume = 0;  // enclosed by the inner wall: the material saved
+  std::size_t inner_components = 0;
+  std::size_t dropped_outside = 0;
+  std::size_t dropped_small = 0;
+};
+
 struct SurfaceResult {
   core::TriangleMesh mesh;  // LPS mm
+  std::optional<HollowSummary> hollow;
   std::vector<StepSummary> steps;
   std::vector<std::string> warnings;
 };

@@ -71,13 +71,15 @@ class TriangleGrid {
 
   // Squared distance from p to the nearest triangle; `stamp` (one entry per triangle, owned by
   // the calling thread) avoids testing a triangle twice per query.
-  double nearest_squared(const P3& p, std::vector<std::uint32_t>& stamp,
-                         std::uint32_t query) const {
+  // With `cap` finite, the search stops once no triangle nearer than cap is left, returning
+  // at most cap².
+  double nearest_squared(const P3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,
+                         double cap = std::numeric_limits<double>::infinity()) const {
     std::array<int, 3> c{};
     for (int a = 0; a < 3; ++a) {
       c[a] = std::clamp(static_cast<int>(std::floor((p[a] - lo_[a]) / cell_)), 0, dims_[a] - 1);
     }
-    double best = std::numeric_limits<double>::infinity();
+    double best = cap * cap;
     const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
     for (int r = 0; r <= max_ring; ++r) {
       for (int z = c[2] - r; z <= c[2] + r; ++z) {
@@ -261,6 +263,33 @@ MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMes
   }
   out.mean = sum / static_cast<double>(from.positions.size());
   return out;
+}
+
+std::vector<float> point_to_mesh_distances(std::span<const std::array<float, 3>> points,
+                                           const TriangleMesh& to, unsigned threads, double cap) {
+  std::vector<float> distances(points.size(), std::numeric_limits<float>::infinity());
+  if (points.empty() || to.triangles.empty()) return distances;
+  const TriangleGrid grid(to);
+  constexpr std::size_t kChunk = 4096;
+  const std::size_t chunks = (points.size() + kChunk - 1) / kChunk;
+  const unsigned n_threads = detail::resolve_threads(threads);
+  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
+  std::vector<std::uint32_t> queries(n_threads, 0);
+  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
+    std::vector<std::uint32_t>& stamp = stamps[w];
+    std::uint32_t& query = queries[w];
+    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
+    const std::size_t end = std::min(points.size(), (k + 1) * kChunk);
+    for (std::size_t v = k * kChunk; v < end; ++v) {
+      if (++query == 0) {
+        std::fill(stamp.begin(), stamp.end(), 0);
+        query = 1;
+      }
+      distances[v] = static_cast<float>(
+          std::sqrt(grid.nearest_squared(to_p3(points[v]), stamp, query, cap)));
+    }
+  });
+  return distances;
 }
 
 double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads) {

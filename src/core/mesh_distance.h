@@ -15,6 +15,9 @@
 
 #include <array>
 #include <cstddef>
+#include <limits>
+#include <span>
+#include <vector>
 
 #include "core/mesh.h"
 
@@ -30,6 +33,13 @@ struct MeshDistance {
 // an empty `to` (with a non-empty `from`) gives infinity. threads: 0 = hardware concurrency.
 MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
                                      unsigned threads = 0);
+
+// The distance from each point to the surface of `to` (rounded to float), in order, or `cap`
+// for a point farther than cap (the search stops there: far points cost little); infinity for
+// every point when `to` has no triangle. Same grid and cost as vertex_to_mesh_distance.
+std::vector<float> point_to_mesh_distances(
+    std::span<const std::array<float, 3>> points, const TriangleMesh& to, unsigned threads = 0,
+    double cap = std::numeric_limits<double>::infinity());
 
 // vertex_to_mesh_distance(from, to).max.
 double max_vertex_distance(const TriangleMesh& from, const TriangleMesh& to, unsigned threads = 0);

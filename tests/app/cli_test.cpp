@@ -566,3 +566,92 @@ TEST(Cli, CropBoxLeavesOutWhatIsOutside) {
 }
 
 }  // namespace
+
+namespace {
+
+nlohmann::json read_json(const fs::path& file) {
+  std::ifstream in(file);
+  return nlohmann::json::parse(in);
+}
+
+// --iso auto (issue 16 item 5): Otsu's threshold over the volume, printed and in the report.
+TEST(Cli, IsoAutoOnTheSampleSeriesLandsBetweenAirAndSoftTissue) {
+  const fs::path out = fresh_dir("iso_auto");
+  const CommandRun r = run("convert " + std::string(TYPEMERGE_SOURCE_DIR) +
+                           "/sample_series --iso auto -o " + (out / "skin.stl").string() +
+                           " --report " + (out / "report.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("iso auto: Otsu's threshold"), std::string::npos) << r.out;
+  const auto report = read_json(out / "report.json");
+  const double threshold = report["auto_iso"]["threshold"].get<double>();
+  EXPECT_EQ(report["auto_iso"]["units"], "HU");
+  // Air is -1000 HU; the phantom's skin and soft tissue 0 to 60 HU.
+  EXPECT_GT(threshold, -900);
+  EXPECT_LT(threshold, -100);
+  EXPECT_LT(report["auto_iso"]["lower_class_mean"].get<double>(), -900);
+  EXPECT_GT(report["auto_iso"]["upper_class_mean"].get<double>(), -100);
+  EXPECT_EQ(report["surfaces"][0]["hu_lo"].get<double>(), threshold);
+  EXPECT_TRUE(report["surfaces"][0]["validity"]["closed_manifold"].get<bool>());
+  EXPECT_TRUE(report["notes"].empty()) << report["notes"];
+  // The same surface as the threshold given by hand (the printed value has 6 digits: compare
+  // volumes, not bytes).
+  char given[64];
+  std::snprintf(given, sizeof given, "%.17g", threshold);
+  ASSERT_EQ(run("convert " + std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series --iso " + given +
+                " -o " + (out / "given.stl").string()).exit_code, 0);
+  const auto a = nlohmann::json::parse(run("stats --json " + (out / "skin.stl").string()).out);
+  const auto b = nlohmann::json::parse(run("stats --json " + (out / "given.stl").string()).out);
+  EXPECT_EQ(a["volume_mm3"], b["volume_mm3"]);
+}
+
+// An MR-like series: modality MR, background near 0 with noise, tissue around 600 in the
+// scanner's units. Table removal (HU) is skipped with a note; the threshold is in its units.
+TEST(Cli, IsoAutoOnAnMrLikeSeriesSkipsTheHuSteps) {
+  const fs::path dir = fresh_dir("mr_like");
+  typemerge::ct_writer::SeriesLayout layout;
+  layout.uid_seed = "mr_like";
+  layout.columns = 24;
+  layout.rows = 24;
+  layout.slices = 12;
+  layout.slice_spacing = 2;
+  layout.rescale_intercept = 0;
+  layout.stored_value = [](int i, int j, int k) {
+    const double d = std::hypot(i - 11.5, j - 11.5, (k - 5.5) * 2);
+    const int noise = static_cast<int>(typemerge::ct_writer::fnv1a64(
+                          std::to_string(i) + "," + std::to_string(j) + "," + std::to_string(k)) %
+                      41);
+    return (d < 8 ? 600 : 5) + noise;
+  };
+  for (auto spec : typemerge::ct_writer::make_axial_series(layout)) {
+    spec.modality = "MR";
+    typemerge::ct_writer::write_ct_slice(spec, dir / (spec.instance_number + ".dcm"));
+  }
+  const fs::path out = fresh_dir("mr_like_out");
+  const CommandRun r = run("convert " + dir.string() + " --allow-non-ct --iso auto --remove-table " +
+                           "--crop-tissue -o " + (out / "head.stl").string() + " --report " +
+                           (out / "report.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_NE(r.out.find("note: table removal skipped: the series is MR"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("note: tissue crop at Otsu's threshold"), std::string::npos) << r.out;
+  const auto report = read_json(out / "report.json");
+  EXPECT_EQ(report["auto_iso"]["units"], "volume values");
+  const double threshold = report["auto_iso"]["threshold"].get<double>();
+  EXPECT_GT(threshold, 100);
+  EXPECT_LT(threshold, 550);
+  EXPECT_EQ(report["preprocess"][0]["step"], "remove_outside_body");
+  EXPECT_TRUE(report["preprocess"][0]["skipped"].get<bool>());
+  EXPECT_EQ(report["notes"].size(), 2u);
+  EXPECT_TRUE(report["surfaces"][0]["validity"]["closed_manifold"].get<bool>());
+  // The ball of radius 8 mm: 4/3 π 8³ mm³ = 2.14 mL.
+  EXPECT_NEAR(report["surfaces"][0]["volume_ml"].get<double>(), 2.14, 0.25);
+}
+
+TEST(Cli, IsoWantsANumberOrAuto) {
+  const fs::path dir = write_ball_series("iso_word");
+  const CommandRun r = run("convert " + dir.string() + " --iso automatic -o " +
+                           (fresh_dir("iso_word_out") / "x.stl").string());
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("a number or 'auto'"), std::string::npos) << r.out;
+}
+
+}  // namespace

@@ -144,6 +144,8 @@ std::map<std::string, std::string> outputs(const std::string& name, const fs::pa
                (out / "window.stl").string() + " --report " + (out / "window.json").string(),
            "convert " + in + " --iso 300.5 -o " + (out / "mesh.3mf").string(),
            "convert " + in + " --preset bone,skin --center -o " + (out / "presets.3mf").string(),
+           "convert " + in + " --iso auto --hollow 1.5 -o " + (out / "hollow.stl").string() +
+               " --report " + (out / "hollow.json").string(),
        }) {
     const auto r = run_cli(command, environment, wrapper);
     EXPECT_EQ(r.exit_code, 0) << name << ": " << command << "\n" << r.err;
@@ -226,15 +228,15 @@ class Determinism : public ::testing::Test {
     static const auto reference = outputs("reference", study, "LC_ALL=C TZ=UTC");
     study_ = &study;
     reference_ = &reference;
-    ASSERT_EQ(reference_->size(), 15u) << "the reference run did not write every output";
+    ASSERT_EQ(reference_->size(), 17u) << "the reference run did not write every output";
   }
   const fs::path* study_ = nullptr;
   const std::map<std::string, std::string>* reference_ = nullptr;
 };
 
 TEST_F(Determinism, ReferenceRunWroteEverything) {
-  // info, NRRD ×2, bone and skin STL and PNG, two reports, two more STL, two 3MF, the batch
-  // summary as JSON and CSV (checked in SetUp).
+  // info, NRRD ×2, bone and skin STL and PNG, three reports, three more STL (the last with
+  // --iso auto --hollow), two 3MF, the batch summary as JSON and CSV (checked in SetUp).
   for (const auto& [file, bytes] : *reference_) EXPECT_GT(bytes.size(), 100u) << file;
   const std::string& summary = reference_->at("batch/summary.json");
   EXPECT_NE(summary.find("\"no_study\""), std::string::npos) << summary;

@@ -213,6 +213,8 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
       "convert " + in + " --preset bone,skin -o " + (out / "surfaces").string() + " --preview " +
           "--report " + (out / "report.json").string(),
       "convert " + in + " --iso 300 --ascii -o " + (out / "ascii.stl").string(),
+      "convert " + in + " --iso auto --hollow 2 --allow-non-ct -o " + (out / "hollow.stl").string() +
+          " --report " + (out / "hollow.json").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.ply").string(),
       "convert " + in + " --iso 300 -o " + (out / "mesh.obj").string(),
       "convert " + in + " --preset bone,skin -o " + (out / "surfaces.3mf").string(),
@@ -240,10 +242,11 @@ TEST(Privacy, NoIdentifyingAttributeReachesAnyOutput) {
     ++files;
     for (auto& l : leaks(readable_content(entry.path()), name)) found.push_back(l);
   }
-  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, PLY, OBJ, the bone+skin 3MF; batch:
+  // nrrd ×2, bone and skin STL + PNG, report, ASCII STL, hollow STL + report, PLY, OBJ, the
+  // bone+skin 3MF; batch:
   // bone and skin STL + PNG, summary JSON + CSV, the study's manifest record, the event log;
   // batch --format 3mf: the study's package, summary JSON + CSV, the manifest record.
-  EXPECT_EQ(files, 23u);
+  EXPECT_EQ(files, 25u);
   // The check covers the folder entries only if they are there.
   const std::string summary = read_file_bytes(out / "batch" / "summary.json");
   EXPECT_NE(summary.find("\"status\": \"no_study\""), std::string::npos) << summary;

@@ -1,0 +1,275 @@
+#include "core/inner_wall.h"
+
+#include <algorithm>
+#include <cassert>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+#include "core/distance_transform.h"
+#include "core/marching_cubes.h"
+#include "core/mesh_distance.h"
+#include "core/union_find.h"
+
+namespace typemerge::core {
+namespace {
+
+using Point = std::array<double, 3>;
+
+Point sub(const Point& a, const Point& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+Point cross(const Point& a, const Point& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double dot(const Point& a, const Point& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+Point to_point(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
+
+// Bounds of the stretch |A v| / |v| of the grid's unit axes A (1 and 1 for orthogonal axes):
+// Gershgorin discs of the Gram matrix AᵀA, whose diagonal is 1.
+std::array<double, 2> stretch_bounds(const IndexToPatient& geometry) {
+  std::array<Point, 3> unit{};
+  for (int a = 0; a < 3; ++a) {
+    const double length = geometry.spacing(a);
+    for (int c = 0; c < 3; ++c) unit[a][c] = geometry.axes[a][c] / length;
+  }
+  double radius = 0;
+  for (int a = 0; a < 3; ++a) {
+    double row = 0;
+    for (int b = 0; b < 3; ++b) row += a == b ? 0.0 : std::abs(dot(unit[a], unit[b]));
+    radius = std::max(radius, row);
+  }
+  return {std::sqrt(std::max(1.0 - radius, 1e-6)), std::sqrt(1.0 + radius)};
+}
+
+double signed_volume(const TriangleMesh& mesh, const std::vector<std::uint32_t>& triangles) {
+  double volume = 0;
+  for (std::uint32_t t : triangles) {
+    const auto& tri = mesh.triangles[t];
+    volume += dot(to_point(mesh.positions[tri[0]]),
+                  cross(to_point(mesh.positions[tri[1]]), to_point(mesh.positions[tri[2]])));
+  }
+  return volume / 6.0;
+}
+
+// Outside samples (0) that no 6-connected path of outside samples joins to the volume's
+// border become inside (infinity): the air pockets a cavity-filling finish removed.
+void fill_enclosed_outside(std::span<float> d, const VolumeSize& size) {
+  std::vector<std::uint8_t> reached(d.size(), 0);
+  std::vector<std::size_t> stack;
+  const std::int64_t nx = size.nx, ny = size.ny, nz = size.nz;
+  auto push = [&](std::int64_t i, std::int64_t j, std::int64_t k) {
+    const auto v = static_cast<std::size_t>(i + nx * (j + ny * k));
+    if (d[v] == 0.0f && reached[v] == 0) {
+      reached[v] = 1;
+      stack.push_back(v);
+    }
+  };
+  for (std::int64_t k = 0; k < nz; ++k) {
+    for (std::int64_t j = 0; j < ny; ++j) {
+      for (std::int64_t i = 0; i < nx; ++i) {
+        if (i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1) push(i, j, k);
+      }
+    }
+  }
+  while (!stack.empty()) {
+    const std::size_t v = stack.back();
+    stack.pop_back();
+    const auto i = static_cast<std::int64_t>(v) % nx;
+    const auto j = (static_cast<std::int64_t>(v) / nx) % ny;
+    const auto k = static_cast<std::int64_t>(v) / (nx * ny);
+    if (i > 0) push(i - 1, j, k);
+    if (i + 1 < nx) push(i + 1, j, k);
+    if (j > 0) push(i, j - 1, k);
+    if (j + 1 < ny) push(i, j + 1, k);
+    if (k > 0) push(i, j, k - 1);
+    if (k + 1 < nz) push(i, j, k + 1);
+  }
+  for (std::size_t v = 0; v < d.size(); ++v) {
+    if (d[v] == 0.0f && reached[v] == 0) d[v] = std::numeric_limits<float>::infinity();
+  }
+}
+
+}  // namespace
+
+namespace detail {
+
+bool point_inside(const TriangleMesh& mesh, const Point& point) {
+  // A fixed, deliberately irrational direction, so rays through edges and vertices of lattice
+  // meshes are unlikely (the one of mesh/components.cpp); Möller–Trumbore per triangle.
+  constexpr Point kDirection = {0.5773502691896258, 0.5612486080160912, 0.5929270612815711};
+  std::size_t crossings = 0;
+  for (const auto& t : mesh.triangles) {
+    const Point p0 = to_point(mesh.positions[t[0]]);
+    const Point e1 = sub(to_point(mesh.positions[t[1]]), p0);
+    const Point e2 = sub(to_point(mesh.positions[t[2]]), p0);
+    const Point h = cross(kDirection, e2);
+    const double det = dot(e1, h);
+    if (det == 0.0) continue;
+    const double inv = 1.0 / det;
+    const Point s = sub(point, p0);
+    const double u = dot(s, h) * inv;
+    if (u < 0.0 || u > 1.0) continue;
+    const Point q = cross(s, e1);
+    const double v = dot(kDirection, q) * inv;
+    if (v < 0.0 || u + v > 1.0) continue;
+    if (dot(e2, q) * inv > 0.0) ++crossings;
+  }
+  return crossings % 2 == 1;
+}
+
+}  // namespace detail
+
+TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMesh& outer,
+                                const InnerWallOptions& options, InnerWallStats* stats) {
+  assert(options.wall_mm > 0);
+  InnerWallStats local;
+  InnerWallStats& s = stats != nullptr ? *stats : local;
+  s = {};
+  const auto& size = field.size();
+  const IndexToPatient& geometry = field.geometry();
+  const std::array<double, 3> spacing = {geometry.spacing(0), geometry.spacing(1),
+                                         geometry.spacing(2)};
+
+  // 1–2. D², in the field's storage: seeds (0) at the outside samples.
+  Volume distance(size, geometry);
+  {
+    auto& d = distance.samples();
+    const auto& values = field.samples();
+    d.resize(values.size());
+    constexpr float kFar = std::numeric_limits<float>::infinity();
+    for (std::size_t v = 0; v < values.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
+    if (options.fill_enclosed) fill_enclosed_outside(d, size);
+    squared_distance_transform(d, size, spacing, /*seeds_beyond_border=*/true, options.threads);
+  }
+
+  // 3. The band and F.
+  const auto [sigma_min, sigma_max] = stretch_bounds(geometry);
+  const Point diagonal_vector = {
+      geometry.axes[0][0] + geometry.axes[1][0] + geometry.axes[2][0],
+      geometry.axes[0][1] + geometry.axes[1][1] + geometry.axes[2][1],
+      geometry.axes[0][2] + geometry.axes[1][2] + geometry.axes[2][2]};
+  // The longest cube diagonal of a sheared grid is one of the four ±; bound it by the sum.
+  const double diagonal = std::max(std::sqrt(dot(diagonal_vector, diagonal_vector)),
+                                   std::sqrt(spacing[0] * spacing[0] + spacing[1] * spacing[1] +
+                                             spacing[2] * spacing[2]) *
+                                       sigma_max);
+  const double wall = options.wall_mm, m = options.outer_deviation_mm;
+  const double band_lo = (wall - m) / sigma_max;                 // below: F < wall surely
+  const double band_hi =
+      (wall + diagonal * diagonal / (8 * wall) + diagonal + m) / sigma_min;  // above: F > level
+  // Out of the band, F's lower bound σ_min·D − r − m (at least 0).
+  auto lower_bound = [&](double d) { return std::max(0.0, sigma_min * d - diagonal - m); };
+
+  std::vector<std::uint32_t> band_index;  // voxel index of each band sample
+  TriangleMesh points;                    // band samples' centres, patient mm
+  auto& f = distance.samples();
+  for (std::int64_t k = 0; k < size.nz; ++k) {
+    for (std::int64_t j = 0; j < size.ny; ++j) {
+      for (std::int64_t i = 0; i < size.nx; ++i) {
+        const auto v = static_cast<std::size_t>(i + size.nx * (j + size.ny * k));
+        const double d = std::sqrt(static_cast<double>(f[v]));
+        // Outside samples (D = 0) stay 0 whatever the band: they are below the level.
+        if (d > 0 && d >= band_lo && d <= band_hi) {
+          band_index.push_back(static_cast<std::uint32_t>(v));
+          const Vec3 p = geometry.apply(double(i), double(j), double(k));
+          points.positions.push_back(
+              {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])});
+        } else {
+          f[v] = static_cast<float>(lower_bound(d));
+        }
+      }
+    }
+  }
+  s.band_samples = band_index.size();
+  // Exact distances of the band samples to the outer surface.
+  {
+    // A sample farther than the band's top from the outer surface is above the level
+    // whatever its exact distance: the search stops there.
+    const std::vector<float> exact =
+        point_to_mesh_distances(points.positions, outer, options.threads, band_hi * sigma_max + diagonal);
+    for (std::size_t b = 0; b < band_index.size(); ++b) f[band_index[b]] = exact[b];
+    points = {};
+    band_index = {};
+  }
+
+  // 4. The wall: samples with F >= wall are inside the field's iso-surface, which is the
+  // hollow's boundary wound outward from the hollow; reversed, it faces into it.
+  ExtractOptions extract;
+  extract.close_borders = true;
+  extract.threads = options.threads;
+  // Extracted slightly deeper than the wall: across a cube, linear interpolation of F (a
+  // distance to a convex bend is convex) errs by up to about r² / (8 · wall), the chord
+  // error over the cube's diagonal r, toward the outer wall.
+  const double level = wall + diagonal * diagonal / (8 * wall);
+  TriangleMesh inner = extract_isosurface(distance, static_cast<float>(level), extract);
+  distance = {};
+  if (inner.empty()) return inner;
+  to_patient(inner, geometry);
+  for (auto& t : inner.triangles) std::swap(t[1], t[2]);
+  for (auto& n : inner.normals) n = {-n[0], -n[1], -n[2]};
+
+  // 5. Components (through shared vertices), each kept or dropped whole.
+  std::vector<std::uint32_t> parent(inner.positions.size());
+  for (std::uint32_t v = 0; v < parent.size(); ++v) parent[v] = v;
+  for (const auto& t : inner.triangles) {
+    for (int e = 1; e < 3; ++e) {
+      const std::uint32_t a = find_root(parent, t[0]), b = find_root(parent, t[e]);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    }
+  }
+  std::vector<std::vector<std::uint32_t>> triangles_of;
+  {
+    std::vector<std::uint32_t> root_label(inner.positions.size(),
+                                          std::numeric_limits<std::uint32_t>::max());
+    for (std::uint32_t t = 0; t < inner.triangles.size(); ++t) {
+      const std::uint32_t root = find_root(parent, inner.triangles[t][0]);
+      if (root_label[root] == std::numeric_limits<std::uint32_t>::max()) {
+        root_label[root] = static_cast<std::uint32_t>(triangles_of.size());
+        triangles_of.emplace_back();
+      }
+      triangles_of[root_label[root]].push_back(t);
+    }
+  }
+  s.components = triangles_of.size();
+  const double min_hollow = wall * wall * wall;
+  TriangleMesh kept;
+  std::vector<std::uint32_t> new_index(inner.positions.size(),
+                                       std::numeric_limits<std::uint32_t>::max());
+  for (const auto& component : triangles_of) {
+    const double volume = signed_volume(inner, component);  // < 0: a hollow, > 0: an island
+    if (volume < 0 && -volume < min_hollow) {
+      ++s.dropped_small;
+      continue;
+    }
+    // Inside the outer surface or not: the walls do not cross, so one vertex decides; three
+    // (first, middle, last triangle) vote, against a ray through an edge.
+    int inside = 0;
+    for (std::size_t pick : {std::size_t{0}, component.size() / 2, component.size() - 1}) {
+      inside += detail::point_inside(outer, to_point(inner.positions[inner.triangles[component[pick]][0]]))
+                    ? 1
+                    : 0;
+    }
+    if (inside < 2) {
+      ++s.dropped_outside;
+      continue;
+    }
+    s.hollow_volume_mm3 -= volume;
+    for (std::uint32_t t : component) {
+      std::array<std::uint32_t, 3> triangle{};
+      for (int c = 0; c < 3; ++c) {
+        const std::uint32_t v = inner.triangles[t][c];
+        if (new_index[v] == std::numeric_limits<std::uint32_t>::max()) {
+          new_index[v] = static_cast<std::uint32_t>(kept.positions.size());
+          kept.positions.push_back(inner.positions[v]);
+          kept.normals.push_back(inner.normals[v]);
+        }
+        triangle[c] = new_index[v];
+      }
+      kept.triangles.push_back(triangle);
+    }
+  }
+  return kept;
+}
+
+}  // namespace typemerge::core
