@@ -117,6 +117,8 @@ TEST(InputTree, CommandsLeaveEveryFileAndFolderAsTheyWere) {
            "batch " + in + " --preset bone --out " + (out / "batch").string(),  // rerun: skips
            "convert " + in + " --preset bone,skin --center -o " + (out / "s.3mf").string(),
            "batch " + in + " --preset bone,skin --format 3mf --out " + (out / "batch_3mf").string(),
+           "convert " + in + " --iso auto --hollow 2 -o " + (out / "hollow.stl").string() +
+               " --report " + (out / "hollow.json").string(),
        }) {
     const auto r = run_cli(command);
     // The tree holds a localizer-only study and damaged files too: batch says "some failed"
