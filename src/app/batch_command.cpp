@@ -431,7 +431,9 @@ void BatchRun::prepare(const std::vector<StudyPlan>& plans) {
 void BatchRun::account_for_folders(const dicom::FolderScan& scan,
                                    const std::vector<StudyPlan>& plans) {
   for (const FolderWithoutStudy& folder : folders_without_study(scan, plans)) {
-    if (in_shard(folder.folder_id, shard_.k, shard_.n)) outcomes_.push_back(folder_outcome(folder));
+    if (in_shard(folder.folder_id, shard_.k, shard_.n)) {
+      outcomes_.push_back(folder_outcome(folder, options_.folder_paths));
+    }
   }
 }
 
@@ -740,6 +742,9 @@ void add_batch_command(CLI::App& app, BatchOptions& options) {
                       "job of a Slurm array, GNU parallel, ...); writes summary.shard-K-of-N.*");
   command->add_flag("--merge-summaries", options.merge_summaries,
                     "Join the shard summaries in --out into summary.json and summary.csv");
+  command->add_flag("--folder-paths", options.folder_paths,
+                    "Name folders without a study by their path under ROOT instead of "
+                    "folder-<id> (paths may hold patient names)");
   CLI::App* surface = command->add_option_group("Surface");
   add_surface_options(*surface, options.convert);
   command->callback([&options, surface] { options.surface_arguments = given_arguments(*surface); });

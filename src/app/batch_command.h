@@ -30,6 +30,9 @@ struct BatchOptions {
   std::string log;           // JSON lines, appended
   std::string shard;         // "K/N"
   bool merge_summaries = false;
+  // Folders without a study named by their path under ROOT, not by folder-<id> (a path may
+  // hold a patient's name: only when the user asks).
+  bool folder_paths = false;
 };
 
 // Exit codes of `batch` (README "Exit codes"): 0 every study converted or up to date,

@@ -151,9 +151,14 @@ std::vector<FolderWithoutStudy> folders_without_study(const dicom::FolderScan& s
   return folders;
 }
 
-StudyOutcome folder_outcome(const FolderWithoutStudy& folder) {
+std::string FolderWithoutStudy::shown_name(bool path) const {
+  if (!path) return "folder-" + folder_id;
+  return folder.empty() ? std::string(".") : folder.generic_string();
+}
+
+StudyOutcome folder_outcome(const FolderWithoutStudy& folder, bool path) {
   StudyOutcome outcome;
-  outcome.input = folder.shown_name();
+  outcome.input = folder.shown_name(path);
   outcome.status = folder.counts_as_failure() ? StudyStatus::no_study : StudyStatus::no_ct;
   outcome.reason = folder.reason();
   outcome.skipped = folder.skipped;

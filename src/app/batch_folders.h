@@ -3,8 +3,9 @@
 // A folder under ROOT that directly holds files, none of which went into a study (every file
 // skipped by the scan: damaged, not DICOM, not CT), gets an entry of its own in the summary,
 // with its files counted by kind. Such a folder has no DICOM attributes its name could be
-// compared with (see batch_plan.h), so it is never shown by its path, only by a stable hash of
-// it: "folder-<id>". Shards take folders by that id, as they take studies by theirs.
+// compared with (see batch_plan.h), so it is shown by a stable hash of its path, "folder-<id>",
+// and by the path itself only when the user asks (--folder-paths). Shards take folders by that
+// id, as they take studies by theirs.
 #pragma once
 
 #include <filesystem>
@@ -26,7 +27,8 @@ struct FolderWithoutStudy {
   // DICOM or CT images that cannot be used. Otherwise (status no_ct) it held only files that
   // are not CT by design: not DICOM, non-image DICOM such as a DICOMDIR, other modalities.
   bool counts_as_failure() const;
-  std::string shown_name() const { return "folder-" + folder_id; }
+  // "folder-<id>", or with `path` the folder under ROOT ("." for ROOT itself).
+  std::string shown_name(bool path = false) const;
   // `skipped` as one line: "3 unreadable DICOM files; 2 non-DICOM files".
   std::string reason() const;
 };
@@ -40,7 +42,8 @@ std::vector<FolderWithoutStudy> folders_without_study(const dicom::FolderScan& s
 // for the same tree; "" and "." are the root).
 std::string folder_id_of(const std::filesystem::path& relative_folder);
 
-// The folder's summary entry: status no_study or no_ct, the masked name as input, no study.
-StudyOutcome folder_outcome(const FolderWithoutStudy& folder);
+// The folder's summary entry: status no_study or no_ct, the masked name (or with `path` the
+// folder's path under ROOT) as input, no study.
+StudyOutcome folder_outcome(const FolderWithoutStudy& folder, bool path = false);
 
 }  // namespace typemerge::app

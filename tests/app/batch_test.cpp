@@ -312,6 +312,20 @@ TEST(Batch, EveryFolderIsAccountedForEvenWithoutAStudy) {
     }
   }
 
+  // Asked for, the folders are named by their paths under ROOT.
+  const auto named = run_cli("batch " + root.string() + " --preset bone --folder-paths --out " +
+                             (work / "named").string());
+  EXPECT_EQ(named.exit_code, 5) << named.err;
+  const json named_summary = summary_of(work / "named" / "summary.json");
+  std::vector<std::string> inputs;
+  for (const auto& r : named_summary["results"]) inputs.push_back(r["input"]);
+  for (const std::string& folder : {"DOE_JOHN_damaged", "docs", "mr"}) {
+    EXPECT_NE(std::find(inputs.begin(), inputs.end(), folder), inputs.end()) << folder;
+  }
+  EXPECT_EQ(named_summary.dump().find(damaged_name), std::string::npos);
+  EXPECT_NE(named.err.find("DOE_JOHN_damaged: no_study: " + damaged_reason), std::string::npos)
+      << named.err;
+
   // A rerun reports the folders again (they have no manifest record to skip by).
   const auto rerun = run_cli("batch " + root.string() + " --preset bone --out " + out.string());
   EXPECT_EQ(rerun.exit_code, 5) << rerun.err;
