@@ -144,7 +144,9 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   }
 
   // 3. The band and F.
-  const auto [sigma_min, sigma_max] = stretch_bounds(geometry);
+  // Not a structured binding: Clang 14 (the fuzz build) cannot capture one in a lambda.
+  const auto stretch = stretch_bounds(geometry);
+  const double sigma_min = stretch[0], sigma_max = stretch[1];
   const Point diagonal_vector = {
       geometry.axes[0][0] + geometry.axes[1][0] + geometry.axes[2][0],
       geometry.axes[0][1] + geometry.axes[1][1] + geometry.axes[2][1],
