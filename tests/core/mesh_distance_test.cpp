@@ -128,6 +128,49 @@ TEST(MeshDistance, SameForAnyThreadCount) {
   }
 }
 
+// Point distances (the hollow wall's exact refinement): each point's distance to `to` as the
+// brute force gives it (rounded to float), `cap` for every point farther than the cap and
+// only for those, infinity against an empty mesh, the same for any thread count.
+TEST(MeshDistance, PointDistancesMatchBruteForceUpToTheCap) {
+  const Volume volume = test::sphere_volume(26, 9.7, 12.3, 12.6, 12.1);
+  const TriangleMesh to = extract_type_merged(volume, 0.0f);
+  std::vector<std::array<float, 3>> points;
+  for (int i = 0; i < 400; ++i) {  // inside, near and far outside the sphere
+    const double a = 0.37 * i, b = 0.11 * i, r = 0.05 * i;
+    points.push_back({static_cast<float>(12.3 + r * std::cos(a) * std::sin(b)),
+                      static_cast<float>(12.6 + r * std::sin(a) * std::sin(b)),
+                      static_cast<float>(12.1 + r * std::cos(b))});
+  }
+  TriangleMesh cloud;
+  cloud.positions = points;
+  const auto exact = [&](std::size_t i) {
+    TriangleMesh one;
+    one.positions = {points[i]};
+    return brute_force(one, to).max;
+  };
+  const std::vector<float> uncapped = point_to_mesh_distances(points, to, 1);
+  ASSERT_EQ(uncapped.size(), points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    EXPECT_EQ(uncapped[i], static_cast<float>(exact(i))) << i;
+  }
+  const double cap = 3.0;
+  const std::vector<float> capped = point_to_mesh_distances(points, to, 2, cap);
+  std::size_t beyond = 0;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (exact(i) > cap) {
+      ++beyond;
+      EXPECT_EQ(capped[i], static_cast<float>(cap)) << i;
+    } else {
+      EXPECT_EQ(capped[i], uncapped[i]) << i;
+    }
+  }
+  EXPECT_GT(beyond, 50u);  // the cap was exercised
+  for (unsigned threads : {2u, 3u}) {
+    EXPECT_EQ(point_to_mesh_distances(points, to, threads), uncapped);
+  }
+  for (float d : point_to_mesh_distances(points, TriangleMesh{}, 1)) EXPECT_TRUE(std::isinf(d));
+}
+
 TEST(TypeMerging, ThreadedExtractionMergesToTheSameMesh) {
   const Volume volume = test::noise_volume(16, 14, 60, 9);
   ExtractOptions options;
