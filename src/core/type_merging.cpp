@@ -92,8 +92,9 @@ struct MergedDisk {
 class PieceMerger {
  public:
   PieceMerger(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes,
-              const MergeOptions& options, MergeStats& stats)
-      : mesh_(mesh),
+              const MergeOptions& options, MergeStats& stats, const IndexToPatient& geometry)
+      : axes_(geometry.axes),
+        mesh_(mesh),
         cubes_(cubes),
         epsilon_(options.epsilon_voxels),
         stats_(stats),
@@ -782,12 +783,23 @@ class PieceMerger {
     return true;
   }
 
-  // Shape of the 3D triangle of loop vertices (a, b, c): 1 − the cosine of its smallest
-  // angle, so larger is better.
+  // An index-space position in patient millimetres, up to the origin: shapes are judged
+  // where the surface is printed (with 3 mm slices a triangle fine in index space can be a
+  // needle in mm).
+  P3 in_mm(const std::array<float, 3>& p) const {
+    P3 out{0, 0, 0};
+    for (int a = 0; a < 3; ++a) {
+      for (int c = 0; c < 3; ++c) out[c] += static_cast<double>(p[a]) * axes_[a][c];
+    }
+    return out;
+  }
+
+  // Shape of the triangle of loop vertices (a, b, c) in millimetres: 1 − the cosine of its
+  // smallest angle, so larger is better.
   double shape(VertexId a, VertexId b, VertexId c) const {
-    const P3 pa = to_double(mesh_.positions[a]);
-    const P3 pb = to_double(mesh_.positions[b]);
-    const P3 pc = to_double(mesh_.positions[c]);
+    const P3 pa = in_mm(mesh_.positions[a]);
+    const P3 pb = in_mm(mesh_.positions[b]);
+    const P3 pc = in_mm(mesh_.positions[c]);
     auto cosine = [](const P3& o, const P3& p, const P3& q) {
       const P3 u = sub(p, o);
       const P3 v = sub(q, o);
@@ -931,6 +943,7 @@ class PieceMerger {
     bool ok = true;
   };
 
+  std::array<Vec3, 3> axes_;  // index step → mm (IndexToPatient::axes)
   const TriangleMesh& mesh_;
   std::span<const BoundaryCube> cubes_;
   double epsilon_;
@@ -993,7 +1006,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
                 static_cast<std::int32_t>(last) - pad};
   std::vector<Triangle> triangles;
   {
-    PieceMerger merger(piece.mesh, piece.cubes, options, out.stats);
+    PieceMerger merger(piece.mesh, piece.cubes, options, out.stats, volume.geometry());
     merger.run(lattice, static_cast<std::int32_t>(options.block_cubes));
     triangles = std::move(merger.triangles());
   }
