@@ -222,6 +222,39 @@ double point_triangle_distance_squared(const P3& p, const P3& a, const P3& b, co
 
 }  // namespace detail
 
+namespace {
+
+// Calls visit(chunk, i, distance) for every point i, in fixed chunks of kNearestChunk points
+// spread over the threads, each worker with its own query stamps over `to`'s triangles.
+// Precondition: `to` has triangles.
+constexpr std::size_t kNearestChunk = 4096;
+
+template <typename Visit>
+void visit_nearest(std::span<const std::array<float, 3>> points, const TriangleMesh& to,
+                   unsigned threads, double cap, const Visit& visit) {
+  const TriangleGrid grid(to);
+  const std::size_t chunks = (points.size() + kNearestChunk - 1) / kNearestChunk;
+  const unsigned n_threads = detail::resolve_threads(threads);
+  // Per worker: the query stamp of every triangle of `to`, and the current query number.
+  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
+  std::vector<std::uint32_t> queries(n_threads, 0);
+  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
+    std::vector<std::uint32_t>& stamp = stamps[w];
+    std::uint32_t& query = queries[w];
+    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
+    const std::size_t end = std::min(points.size(), (k + 1) * kNearestChunk);
+    for (std::size_t v = k * kNearestChunk; v < end; ++v) {
+      if (++query == 0) {  // wrapped: reset the stamps
+        std::fill(stamp.begin(), stamp.end(), 0);
+        query = 1;
+      }
+      visit(k, v, std::sqrt(grid.nearest_squared(to_p3(points[v]), stamp, query, cap)));
+    }
+  });
+}
+
+}  // namespace
+
 MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMesh& to,
                                      unsigned threads) {
   MeshDistance out;
@@ -231,31 +264,15 @@ MeshDistance vertex_to_mesh_distance(const TriangleMesh& from, const TriangleMes
     out.max = out.mean = std::numeric_limits<double>::infinity();
     return out;
   }
-  const TriangleGrid grid(to);
   // Fixed chunks summed in chunk order: the mean is the same for any thread count.
-  constexpr std::size_t kChunk = 4096;
-  const std::size_t chunks = (from.positions.size() + kChunk - 1) / kChunk;
+  const std::size_t chunks = (from.positions.size() + kNearestChunk - 1) / kNearestChunk;
   std::vector<double> chunk_max(chunks, 0.0);
   std::vector<double> chunk_sum(chunks, 0.0);
-  const unsigned n_threads = detail::resolve_threads(threads);
-  // Per worker: the query stamp of every triangle of `to`, and the current query number.
-  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
-  std::vector<std::uint32_t> queries(n_threads, 0);
-  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
-    std::vector<std::uint32_t>& stamp = stamps[w];
-    std::uint32_t& query = queries[w];
-    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
-    const std::size_t end = std::min(from.positions.size(), (k + 1) * kChunk);
-    for (std::size_t v = k * kChunk; v < end; ++v) {
-      if (++query == 0) {  // wrapped: reset the stamps
-        std::fill(stamp.begin(), stamp.end(), 0);
-        query = 1;
-      }
-      const double d = std::sqrt(grid.nearest_squared(to_p3(from.positions[v]), stamp, query));
-      chunk_max[k] = std::max(chunk_max[k], d);
-      chunk_sum[k] += d;
-    }
-  });
+  visit_nearest(from.positions, to, threads, std::numeric_limits<double>::infinity(),
+                [&](std::size_t k, std::size_t, double d) {
+                  chunk_max[k] = std::max(chunk_max[k], d);
+                  chunk_sum[k] += d;
+                });
   double sum = 0.0;
   for (std::size_t k = 0; k < chunks; ++k) {
     out.max = std::max(out.max, chunk_max[k]);
@@ -269,25 +286,8 @@ std::vector<float> point_to_mesh_distances(std::span<const std::array<float, 3>>
                                            const TriangleMesh& to, unsigned threads, double cap) {
   std::vector<float> distances(points.size(), std::numeric_limits<float>::infinity());
   if (points.empty() || to.triangles.empty()) return distances;
-  const TriangleGrid grid(to);
-  constexpr std::size_t kChunk = 4096;
-  const std::size_t chunks = (points.size() + kChunk - 1) / kChunk;
-  const unsigned n_threads = detail::resolve_threads(threads);
-  std::vector<std::vector<std::uint32_t>> stamps(n_threads);
-  std::vector<std::uint32_t> queries(n_threads, 0);
-  detail::run_parallel(chunks, n_threads, [&](std::size_t k, unsigned w) {
-    std::vector<std::uint32_t>& stamp = stamps[w];
-    std::uint32_t& query = queries[w];
-    if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
-    const std::size_t end = std::min(points.size(), (k + 1) * kChunk);
-    for (std::size_t v = k * kChunk; v < end; ++v) {
-      if (++query == 0) {
-        std::fill(stamp.begin(), stamp.end(), 0);
-        query = 1;
-      }
-      distances[v] = static_cast<float>(
-          std::sqrt(grid.nearest_squared(to_p3(points[v]), stamp, query, cap)));
-    }
+  visit_nearest(points, to, threads, cap, [&](std::size_t, std::size_t v, double d) {
+    distances[v] = static_cast<float>(d);
   });
   return distances;
 }
