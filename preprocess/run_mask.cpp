@@ -176,44 +176,45 @@ SliceRuns dilate(const SliceRuns& in, const Kernel& kernel) {
   return out;
 }
 
-SliceRuns unite(const SliceRuns& a, const SliceRuns& b) {
+namespace {
+
+// The difference of two rows (a without b), appended to `out`.
+void subtract_rows(const Run* a, const Run* a_end, const Run* b, const Run* b_end,
+                   std::vector<Run>& out) {
+  for (const Run* r = a; r != a_end; ++r) {
+    std::int32_t begin = r->begin;
+    while (b != b_end && b->end <= begin) ++b;
+    // Cuts that start before the run's end split it; the last may reach into the next run.
+    for (const Run* c = b; c != b_end && c->begin < r->end; ++c) {
+      if (c->begin > begin) out.push_back({begin, c->begin});
+      begin = std::max(begin, c->end);
+    }
+    if (begin < r->end) out.push_back({begin, r->end});
+  }
+}
+
+// Slice a op b, row by row.
+template <typename RowOp>
+SliceRuns combine(const SliceRuns& a, const SliceRuns& b, RowOp row_op) {
   SliceRuns out;
   out.cols = a.cols;
   for (std::int32_t y = 0; y < a.rows(); ++y) {
-    unite_rows(a.row_begin(y), a.row_end(y), b.row_begin(y), b.row_end(y), out.runs);
+    row_op(a.row_begin(y), a.row_end(y), b.row_begin(y), b.row_end(y), out.runs);
     out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
   }
   return out;
 }
 
+}  // namespace
+
+SliceRuns unite(const SliceRuns& a, const SliceRuns& b) { return combine(a, b, unite_rows); }
+
 SliceRuns intersect(const SliceRuns& a, const SliceRuns& b) {
-  SliceRuns out;
-  out.cols = a.cols;
-  for (std::int32_t y = 0; y < a.rows(); ++y) {
-    intersect_rows(a.row_begin(y), a.row_end(y), b.row_begin(y), b.row_end(y), out.runs);
-    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
-  }
-  return out;
+  return combine(a, b, intersect_rows);
 }
 
 SliceRuns subtract(const SliceRuns& a, const SliceRuns& b) {
-  SliceRuns out;
-  out.cols = a.cols;
-  for (std::int32_t y = 0; y < a.rows(); ++y) {
-    const Run* cut = b.row_begin(y);
-    for (const Run* r = a.row_begin(y); r != a.row_end(y); ++r) {
-      std::int32_t begin = r->begin;
-      while (cut != b.row_end(y) && cut->end <= begin) ++cut;
-      // Cuts that start before the run's end split it; the last may reach into the next run.
-      for (const Run* c = cut; c != b.row_end(y) && c->begin < r->end; ++c) {
-        if (c->begin > begin) out.runs.push_back({begin, c->begin});
-        begin = std::max(begin, c->end);
-      }
-      if (begin < r->end) out.runs.push_back({begin, r->end});
-    }
-    out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
-  }
-  return out;
+  return combine(a, b, subtract_rows);
 }
 
 std::size_t keep_largest_component(std::vector<SliceRuns>& slices) {
