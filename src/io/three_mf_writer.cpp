@@ -7,31 +7,11 @@
 #include <vector>
 
 #include "io/atomic_file.h"
+#include "io/lib3mf_object.h"
 
 namespace typemerge::io {
 namespace {
 
-// lib3mf 1.8's C interface hands out reference-counted objects; each is released here.
-class Released {
- public:
-  Released() = default;
-  Released(const Released&) = delete;
-  Released& operator=(const Released&) = delete;
-  ~Released() {
-    if (object_ != nullptr) NMR::lib3mf_release(object_);
-  }
-  template <typename T>
-  T** out() {
-    return reinterpret_cast<T**>(&object_);
-  }
-  template <typename T>
-  T* get() const {
-    return static_cast<T*>(object_);
-  }
-
- private:
-  NMR::PLib3MFBase* object_ = nullptr;
-};
 
 void check(HRESULT result, NMR::PLib3MFBase* context, const char* what) {
   if (result == LIB3MF_OK) return;
@@ -113,7 +93,7 @@ void add_object(NMR::PLib3MFModel* model, const ThreeMfPart& part, DWORD materia
   for (std::size_t t = 0; t < triangles.size(); ++t) {
     for (int c = 0; c < 3; ++c) triangles[t].m_nIndices[c] = mesh.triangles[t][c];
   }
-  Released object, item, colour;
+  Lib3mfObject object, item, colour;
   check(NMR::lib3mf_model_addmeshobject(model, object.out<NMR::PLib3MFModelMeshObject>()), model,
         "adding a mesh");
   auto* o = object.get<NMR::PLib3MFModelMeshObject>();
@@ -145,7 +125,7 @@ void write_3mf(const std::vector<ThreeMfPart>& parts, const std::filesystem::pat
     if (part.mesh == nullptr) throw std::invalid_argument("3MF: a part without a mesh");
   }
   const std::uint64_t package = package_hash(parts, application);
-  Released model, materials, writer;
+  Lib3mfObject model, materials, writer;
   check(NMR::lib3mf_createmodel(model.out<NMR::PLib3MFModel>()), nullptr, "creating the model");
   auto* m = model.get<NMR::PLib3MFModel>();
   check(NMR::lib3mf_model_setunit(m, NMR::MODELUNIT_MILLIMETER), m, "setting the unit");

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "io/lib3mf_object.h"
+
 namespace typemerge::test {
 
 struct ReadThreeMfObject {
@@ -36,27 +38,6 @@ struct ReadThreeMf {
 
 namespace detail {
 
-class Held {
- public:
-  Held() = default;
-  Held(const Held&) = delete;
-  Held& operator=(const Held&) = delete;
-  ~Held() {
-    if (object_ != nullptr) NMR::lib3mf_release(object_);
-  }
-  template <typename T>
-  T** out() {
-    return reinterpret_cast<T**>(&object_);
-  }
-  template <typename T>
-  T* get() const {
-    return static_cast<T*>(object_);
-  }
-
- private:
-  NMR::PLib3MFBase* object_ = nullptr;
-};
-
 inline void expect_ok(HRESULT result, const char* what) {
   if (result != LIB3MF_OK) throw std::runtime_error(std::string("lib3mf: ") + what + " failed");
 }
@@ -76,9 +57,8 @@ std::string utf8(Get get) {
 
 inline ReadThreeMf read_3mf(const std::filesystem::path& path) {
   using detail::expect_ok;
-  using detail::Held;
   ReadThreeMf package;
-  Held model, reader, objects, items;
+  io::Lib3mfObject model, reader, objects, items;
   expect_ok(NMR::lib3mf_createmodel(model.out<NMR::PLib3MFModel>()), "creating a model");
   auto* m = model.get<NMR::PLib3MFModel>();
   expect_ok(NMR::lib3mf_model_queryreader(m, "3mf", reader.out<NMR::PLib3MFModelReader>()),
@@ -117,7 +97,7 @@ inline ReadThreeMf read_3mf(const std::filesystem::path& path) {
   for (BOOL more = true;;) {
     expect_ok(NMR::lib3mf_resourceiterator_movenext(it, &more), "listing the objects");
     if (!more) break;
-    Held resource, colour, group;
+    io::Lib3mfObject resource, colour, group;
     expect_ok(NMR::lib3mf_resourceiterator_getcurrent(
                   it, resource.out<NMR::PLib3MFModelResource>()),
               "reading an object");
