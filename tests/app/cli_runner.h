@@ -12,6 +12,8 @@
 #include <iterator>
 #include <string>
 
+#include "support/scratch_files.h"
+
 namespace typemerge::test {
 
 struct CliRun {
@@ -19,11 +21,6 @@ struct CliRun {
   std::string out;  // stdout
   std::string err;  // stderr
 };
-
-inline std::string read_file_bytes(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
 
 // `environment` and `wrapper` go before the executable, e.g. run_cli("info DIR", "TZ=UTC").
 inline CliRun run_cli(const std::string& arguments, const std::string& environment = "",
@@ -50,14 +47,5 @@ inline CliRun run_cli(const std::string& arguments, const std::string& environme
   return result;
 }
 
-// A new empty folder under the temporary folder, private to this process (ctest runs the
-// tests of one executable in parallel processes).
-inline std::filesystem::path fresh_dir(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("typemerge_app_" + std::to_string(::getpid()) + "_" + name);
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
 
 }  // namespace typemerge::test

@@ -10,6 +10,7 @@
 #include "io/nrrd_writer.h"
 #include "io/mesh_writers.h"
 #include "io/stl_writer.h"
+#include "support/scratch_files.h"
 
 #include <zip.h>
 
@@ -18,18 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("typemerge_io_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string read_all(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::fresh_dir;
+using test::read_file_bytes;
 
 // A closed, outward tetrahedron:  3
 //                                 |\   vertices 0..3 at the origin and the unit axes
@@ -45,7 +36,7 @@ core::TriangleMesh tetrahedron() {
 TEST(Stl, BinaryLayoutHeaderAndRoundTrip) {
   const fs::path file = fresh_dir("stl") / "tetra.stl";
   write_binary_stl(tetrahedron(), file, stl_header("1.2.3", "LPS"));
-  const std::string bytes = read_all(file);
+  const std::string bytes = read_file_bytes(file);
   ASSERT_EQ(bytes.size(), 84u + 50u * 4u);
   EXPECT_EQ(bytes.substr(0, 25), "typemerge 1.2.3 SPACE=LPS");
   std::uint32_t count = 0;
@@ -81,16 +72,16 @@ TEST(AtomicFile, NothingAppearsUntilCommitAndNothingStaysOnAbort) {
   {
     AtomicFile file(dir / "out.bin");
     file.write("new content");
-    EXPECT_EQ(read_all(dir / "out.bin"), "previous");  // the old file is intact meanwhile
+    EXPECT_EQ(read_file_bytes(dir / "out.bin"), "previous");  // the old file is intact meanwhile
   }  // destroyed without commit: as if the run had failed
-  EXPECT_EQ(read_all(dir / "out.bin"), "previous");
+  EXPECT_EQ(read_file_bytes(dir / "out.bin"), "previous");
   const auto entries = std::distance(fs::directory_iterator(dir), fs::directory_iterator());
   EXPECT_EQ(entries, 1);  // no temporary left behind
 
   AtomicFile file(dir / "out.bin");
   file.write("new content");
   file.commit();
-  EXPECT_EQ(read_all(dir / "out.bin"), "new content");
+  EXPECT_EQ(read_file_bytes(dir / "out.bin"), "new content");
   EXPECT_THROW(AtomicFile(dir / "missing_folder" / "x"), std::runtime_error);
 }
 
@@ -105,7 +96,7 @@ TEST(Nrrd, HeaderCarriesTheShearedGeometryAndSamplesFollow) {
   const fs::path dir = fresh_dir("nrrd");
   write_nrrd(volume, dir / "f.nrrd", NrrdSampleType::float32);
   write_nrrd(volume, dir / "i.nrrd", NrrdSampleType::int16);
-  const std::string f = read_all(dir / "f.nrrd");
+  const std::string f = read_file_bytes(dir / "f.nrrd");
   const std::size_t end = f.find("\n\n");
   ASSERT_NE(end, std::string::npos);
   EXPECT_NE(f.find("space directions: (0.5,0,0) (0,0.5,0) (0,1.25,4)"), std::string::npos);
@@ -115,7 +106,7 @@ TEST(Nrrd, HeaderCarriesTheShearedGeometryAndSamplesFollow) {
   float last = 0;
   std::memcpy(&last, f.data() + f.size() - 4, 4);
   EXPECT_FLOAT_EQ(last, 23 - 10.25f);
-  const std::string i = read_all(dir / "i.nrrd");
+  const std::string i = read_file_bytes(dir / "i.nrrd");
   std::int16_t first = 0;
   std::memcpy(&first, i.data() + i.find("\n\n") + 2, 2);
   EXPECT_EQ(first, -10);  // rounded to the nearest HU
@@ -157,9 +148,9 @@ TEST(ThreeMf, PackageHoldsTheMeshInMillimetres) {
   EXPECT_NE(model.find("<vertex x=\"13.500000\" y=\"0\" z=\"0\""), std::string::npos) << model;
   EXPECT_NE(model.find("<triangle v1=\"1\" v2=\"2\" v3=\"3\""), std::string::npos) << model;
   // Byte-identical when written again (lib3mf's own UUIDs would be random).
-  const std::string first = read_all(file);
+  const std::string first = read_file_bytes(file);
   write_mesh(mesh, file, MeshFormat::three_mf, "typemerge test");
-  EXPECT_EQ(read_all(file), first);
+  EXPECT_EQ(read_file_bytes(file), first);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "io/three_mf_writer.h"
+#include "support/scratch_files.h"
 #include "support/three_mf_reader.h"
 
 namespace typemerge::io {
@@ -18,18 +19,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("typemerge_3mf_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-std::string read_all(const fs::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
+using test::fresh_dir;
+using test::read_file_bytes;
 
 // A closed, outward tetrahedron:  3
 //                                 |\   vertices 0..3 at `origin` and `size` along the axes;
@@ -95,9 +86,9 @@ TEST(ThreeMfPackage, SamePartsGiveTheSameBytesAndNoTimeStamps) {
   write_3mf(parts, dir / "first.3mf", "typemerge test");
   sleep(2);  // a zip time stamp has a resolution of 2 s
   write_3mf(parts, dir / "second.3mf", "typemerge test");
-  const std::string first = read_all(dir / "first.3mf");
+  const std::string first = read_file_bytes(dir / "first.3mf");
   ASSERT_GT(first.size(), 100u);
-  EXPECT_EQ(read_all(dir / "second.3mf"), first);
+  EXPECT_EQ(read_file_bytes(dir / "second.3mf"), first);
   // The modification time and date of every entry, in its local header (offset 10) and in the
   // central directory (offset 12), are zero: nothing of the clock reaches the package.
   const auto local = fields_after(first, "PK\x03\x04", 10);
@@ -110,7 +101,7 @@ TEST(ThreeMfPackage, SamePartsGiveTheSameBytesAndNoTimeStamps) {
   // Other content, other bytes (the UUIDs follow the content): a colour, a name, a vertex.
   auto bytes_with = [&](std::vector<ThreeMfPart> changed, const std::string& name) {
     write_3mf(changed, dir / name, "typemerge test");
-    return read_all(dir / name);
+    return read_file_bytes(dir / name);
   };
   std::vector<ThreeMfPart> recoloured = parts;
   recoloured[1].srgb[2] = 7;
