@@ -1,9 +1,14 @@
 // pipeline_bench: the whole `typemerge convert` pipeline, stage by stage, with time, CPU time,
 // throughput, triangles and peak memory of each stage.
 //
-//   pipeline_bench (--series DIR | --synthetic NXxNYxNZ) [--repeat-z K]
+//   pipeline_bench (--series DIR | --synthetic NXxNYxNZ [--as-dicom]) [--repeat-z K]
 //                  [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]
 //                  [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]
+//                  [--typemerge build/src/app/typemerge]
+//
+// --as-dicom writes the synthetic volume as a CT series (tools/ct_writer, explicit little
+// endian, 12-bit stored values) into --out-dir/pipeline_bench_dicom_NXxNYxNZ and measures it
+// as --series: the loader is then part of the figures and VTK reads the same folder.
 //
 // Stages, in the order `convert` runs them (src/app/convert_command.cpp, surface_pipeline.cpp):
 //   load     scan the folder and decode the default series (DICOM → HU); for --synthetic the
@@ -14,13 +19,23 @@
 //            a reference for flying edges, not part of convert's path nor of the stage sum
 //   tm       core::extract_type_merged, what convert runs: marching cubes and type merging
 //            piece by piece (extraction included)
-//   check    convert's checks around extraction: the tissue count (count_in_window), the
+//   check    convert's checks around extraction: the tissue test (window_cover), the
 //            map to patient mm (to_patient) and core::check_mesh of the extracted surface
 //   finish   the preset's finishing as make_surface does it (keep largest / remove small
-//            components / fill cavities, each followed by check_mesh); none for --iso
+//            components / fill cavities, each with its result's check, derived from the
+//            check before it where the step allows); none for --iso
 //   write    binary STL into --out-dir (atomic: the file is fsync'ed before the rename)
 // and, for --series without --repeat-z, `convert` itself run in-process (app::run_convert,
-// the CLI's code path with the same preset or iso and thread count) as the whole-pipeline row.
+// the CLI's code path with the same preset or iso and thread count) as the whole-pipeline
+// rows: `convert mc` (--algorithm mc: everything but the merge) and `convert tm` (the
+// default). Each is run once more as its own process (--typemerge, default the build's
+// src/app/typemerge beside this bench) for its peak RSS: less the output mesh, over the voxel
+// count, it is printed as bytes a voxel, what a conversion holds besides its result.
+//
+// For --series the loader's floor is printed too: the same files read whole from the page
+// cache (`read bytes`), and parsed by DCMTK (`dcmtk parse`: DcmFileFormat::loadFile with the
+// pixel data, no decoding), each on the same threads as the loader. What load takes above
+// `dcmtk parse` is ours (headers, decoding to HU, the volume's pages).
 //
 // Per stage it prints the median over --repeat runs of wall time and CPU time (all threads,
 // CLOCK_PROCESS_CPUTIME_ID), M cells/s for the stages that visit every cell, triangles in and
@@ -35,12 +50,17 @@
 // Debian's python3-vtk9 (--vtk-python, --vtk-script to override) and times VTK's read →
 // vtkFlyingEdges3D → binary vtkSTLWriter per stage on the same samples; the ratios to ours are
 // printed from that one run.
+#include <dcmtk/dcmdata/dcfilefo.h>
 #include <malloc.h>
+#include <tbb/global_control.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -54,6 +74,7 @@
 
 #include "app/convert_command.h"
 #include "app/presets.h"
+#include "ct_writer/ct_writer.h"
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
 #include "core/type_merging.h"
@@ -245,6 +266,83 @@ core::Volume load_input(const Input& input) {
   return volume;
 }
 
+// The synthetic volume as a CT series in `directory` (kept: a folder that already holds
+// exactly nz files from an earlier run is reused, since writing 1,200 slices takes a while).
+// 0.7 mm pixels, 1 mm slices as in synthetic_volume; HU rounded to 12-bit stored values with
+// intercept −1024, so the loaded volume equals the synthetic one up to that rounding.
+void write_synthetic_series(const Input& input, const fs::path& directory) {
+  if (fs::is_directory(directory)) {
+    const auto files = std::distance(fs::directory_iterator(directory), fs::directory_iterator());
+    if (files == input.nz) return;
+    fs::remove_all(directory);
+  }
+  const core::Volume volume = bench::synthetic_volume(input.nx, input.ny, input.nz);
+  ct_writer::SeriesLayout layout;
+  layout.uid_seed = "pipeline_bench/" + directory.filename().string();
+  layout.columns = static_cast<std::uint16_t>(input.nx);
+  layout.rows = static_cast<std::uint16_t>(input.ny);
+  layout.slices = static_cast<std::int32_t>(input.nz);
+  layout.pixel_spacing = {volume.geometry().spacing(1), volume.geometry().spacing(0)};
+  layout.slice_spacing = volume.geometry().spacing(2);
+  layout.hu = [&volume](int i, int j, int k) { return double(volume.at(i, j, k)); };
+  // Written beside and renamed, so an interrupted run leaves no folder that looks complete.
+  const fs::path partial = directory.string() + ".partial";
+  fs::remove_all(partial);
+  const auto specs_all = ct_writer::make_axial_series(layout);
+  ct_writer::write_series(specs_all, partial);
+  fs::rename(partial, directory);
+}
+
+// The loader's floor on `series`: every file read whole (page cache → memory), then parsed by
+// DCMTK with its pixel data, on `threads` threads like the loader. Best of `repeat`.
+struct LoadFloor {
+  double read_ms = 0;
+  double parse_ms = 0;
+  std::uintmax_t bytes = 0;
+  std::size_t files = 0;
+};
+
+LoadFloor measure_load_floor(const std::string& series_dir, unsigned threads, int repeat) {
+  const auto scan = dicom::scan_folder(series_dir, {});
+  if (!scan.default_series) return {};
+  std::vector<fs::path> files;
+  for (const auto& slice : scan.series[*scan.default_series].slices) files.push_back(slice.path);
+  std::sort(files.begin(), files.end());
+  files.erase(std::unique(files.begin(), files.end()), files.end());
+  LoadFloor floor;
+  floor.files = files.size();
+  for (const auto& f : files) floor.bytes += fs::file_size(f);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  auto best_of = [&](const std::function<void(const fs::path&)>& work) {
+    double best = std::numeric_limits<double>::infinity();
+    for (int r = 0; r < repeat; ++r) {
+      const auto start = std::chrono::steady_clock::now();
+      tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t f) { work(files[f]); });
+      best = std::min(best, std::chrono::duration<double, std::milli>(
+                                std::chrono::steady_clock::now() - start)
+                                .count());
+    }
+    return best;
+  };
+  std::atomic<std::uintmax_t> read_bytes{0};
+  floor.read_ms = best_of([&read_bytes](const fs::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> bytes(fs::file_size(path));
+    in.read(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    read_bytes += static_cast<std::uintmax_t>(in.gcount());
+  });
+  if (read_bytes != floor.bytes * std::uintmax_t(repeat)) {
+    throw std::runtime_error("load floor: short read of the series' files");
+  }
+  // Every value loaded, the pixel data included (DCMTK otherwise leaves values above 4 KiB on
+  // disk until first use).
+  floor.parse_ms = best_of([](const fs::path& path) {
+    DcmFileFormat file;
+    if (file.loadFile(OFFilename(path.c_str())).good()) file.loadAllDataIntoMemory();
+  });
+  return floor;
+}
+
 // ---- one run of every stage -----------------------------------------------------------------
 
 struct RunSettings {
@@ -254,7 +352,7 @@ struct RunSettings {
   fs::path out_dir;
 };
 
-std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells) {
+std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells, double& voxels) {
   std::vector<StageFigures> stages;
   const Surface& surface = settings.surface;
 
@@ -262,6 +360,7 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells)
   stages.push_back(measure("load", [&] { volume = load_input(settings.input); }));
   const auto& size = volume.size();
   cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
+  voxels = double(size.nx) * double(size.ny) * double(size.nz);
   stages.back().cells = cells;
 
   if (surface.preset) {
@@ -310,11 +409,12 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells)
   stages.push_back(measure("check", [&] {
     const float hi =
         surface.hi ? static_cast<float>(*surface.hi) : std::numeric_limits<float>::infinity();
-    if (core::count_in_window(volume, static_cast<float>(surface.lo), hi) == 0) {
-      throw std::runtime_error("no voxel inside the surface's range");
+    if (core::window_cover(volume, static_cast<float>(surface.lo), hi) !=
+        core::WindowCover::some) {
+      throw std::runtime_error("no surface: no voxel (or every voxel) inside the range");
     }
     core::to_patient(mesh, volume.geometry());
-    check = core::check_mesh(mesh);
+    check = core::check_mesh(mesh, settings.threads);
   }));
   stages.back().triangles_in = stages.back().triangles_out = mesh.triangles.size();
   stages.back().mesh_mib = mesh_mib(mesh);
@@ -323,18 +423,19 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells)
   if (surface.preset) {
     const std::size_t before = mesh.triangles.size();
     stages.push_back(measure("finish", [&] {
+      // Each step derives its check from the one before when it can, as make_surface does.
       if (surface.keep_largest) {
-        mesh::keep_largest_component(mesh, surface.fill_cavities ? mesh::Cavities::fill
-                                                                 : mesh::Cavities::keep);
-        check = core::check_mesh(mesh);
+        check = mesh::keep_largest_component(mesh, surface.fill_cavities ? mesh::Cavities::fill
+                                                                         : mesh::Cavities::keep,
+                                             &check)
+                    .validity.check;
       }
       if (surface.min_component_mm3 > 0) {
-        mesh::remove_small_components(mesh, surface.min_component_mm3);
-        check = core::check_mesh(mesh);
+        check = mesh::remove_small_components(mesh, surface.min_component_mm3, &check)
+                    .validity.check;
       }
       if (surface.fill_cavities && !surface.keep_largest) {
-        mesh::fill_cavities(mesh);
-        check = core::check_mesh(mesh);
+        check = mesh::fill_cavities(mesh, &check).validity.check;
       }
       if (!check.closed_manifold()) mesh::check_validity(mesh);
     }));
@@ -365,8 +466,9 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells)
 }
 
 // `typemerge convert DIR (--preset NAME | --iso HU) -o OUT --threads T`, in-process.
-StageFigures run_convert_once(const RunSettings& settings) {
+StageFigures run_convert_once(const RunSettings& settings, const std::string& algorithm) {
   app::ConvertOptions options;
+  options.algorithm = algorithm;
   options.input.input = settings.input.series_dir;
   if (settings.surface.preset)
     options.presets = {settings.surface.name};
@@ -376,9 +478,32 @@ StageFigures run_convert_once(const RunSettings& settings) {
       (settings.out_dir / ("pipeline_bench_convert_" + settings.surface.name + ".stl")).string();
   options.threads = settings.threads;
   std::ostringstream log;
-  StageFigures figures = measure("convert", [&] { app::run_convert(options, log); });
+  StageFigures figures = measure("convert " + algorithm, [&] { app::run_convert(options, log); });
   figures.triangles_out = (fs::file_size(options.output) - 84) / 50;  // binary STL size
   return figures;
+}
+
+// Peak RSS (KiB) of `typemerge convert` run as its own process with the same input, surface,
+// algorithm and threads: the whole program's peak, as a user's `time -v` shows it. Through
+// /usr/bin/time (Debian's `time`) because the kernel's figure for a child we fork or spawn
+// ourselves starts at our own peak (exec records the old address space's peak as the child's),
+// while time's child is forked from a small process. -1 if it could not run.
+long convert_process_peak_kib(const std::string& typemerge, const RunSettings& settings,
+                              const std::string& algorithm) {
+  const fs::path out =
+      settings.out_dir / ("pipeline_bench_process_" + settings.surface.name + ".stl");
+  const fs::path figure = settings.out_dir / "pipeline_bench_process_peak.txt";
+  std::string command = "/usr/bin/time -f %M -o '" + figure.string() + "' '" + typemerge +
+                        "' convert '" + settings.input.series_dir + "'";
+  command += settings.surface.preset ? " --preset " + settings.surface.name
+                                     : " --iso " + std::to_string(settings.surface.lo);
+  command += " --algorithm " + algorithm + " --threads " + std::to_string(settings.threads) +
+             " -o '" + out.string() + "' > /dev/null";
+  if (std::system(command.c_str()) != 0) return -1;
+  std::ifstream in(figure);
+  long kib = -1;
+  in >> kib;
+  return in ? kib : -1;
 }
 
 // ---- the VTK companion --------------------------------------------------------------------
@@ -415,10 +540,12 @@ std::map<std::string, StageFigures> run_vtk(const std::string& python, const std
 
 int usage() {
   std::fprintf(stderr,
-               "usage: pipeline_bench (--series DIR | --synthetic NXxNYxNZ) [--repeat-z K]\n"
+               "usage: pipeline_bench (--series DIR | --synthetic NXxNYxNZ [--as-dicom])\n"
+               "       [--repeat-z K]\n"
                "       [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]\n"
                "       [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]\n"
-               "       [--vtk-python /usr/bin/python3] [--vtk-script bench/vtk_pipeline.py]\n");
+               "       [--vtk-python /usr/bin/python3] [--vtk-script bench/vtk_pipeline.py]\n"
+               "       [--typemerge build/src/app/typemerge]\n");
   return 2;
 }
 
@@ -426,9 +553,12 @@ int run(int argc, char** argv) {
   Input input;
   std::string presets, isos,
       thread_list = "1", nrrd_out, out_dir = "/tmp", vtk_python = "/usr/bin/python3",
+      typemerge = (fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "src" /
+                   "app" / "typemerge")
+                      .string(),
       vtk_script = std::string(TYPEMERGE_BENCH_SOURCE_DIR) + "/vtk_pipeline.py";
   int repeat = 3;
-  bool vtk = false, convert = true;
+  bool vtk = false, convert = true, as_dicom = false;
   for (int a = 1; a < argc; ++a) {
     const std::string key = argv[a];
     if (key == "--vtk") {
@@ -437,6 +567,10 @@ int run(int argc, char** argv) {
     }
     if (key == "--no-convert") {
       convert = false;
+      continue;
+    }
+    if (key == "--as-dicom") {
+      as_dicom = true;
       continue;
     }
     if (a + 1 >= argc) return usage();
@@ -465,10 +599,23 @@ int run(int argc, char** argv) {
       vtk_python = value;
     else if (key == "--vtk-script")
       vtk_script = value;
+    else if (key == "--typemerge")
+      typemerge = value;
     else
       return usage();
   }
   if (input.series_dir.empty() == (input.nx == 0)) return usage();
+  if (as_dicom && input.nx == 0) return usage();
+  if (as_dicom) {
+    const fs::path directory = fs::path(out_dir) / ("pipeline_bench_dicom_" + std::to_string(input.nx) +
+                                                   "x" + std::to_string(input.ny) + "x" +
+                                                   std::to_string(input.nz));
+    fs::create_directories(out_dir);
+    write_synthetic_series(input, directory);
+    std::printf("synthetic series written as DICOM to %s\n", directory.c_str());
+    input.series_dir = directory.string();
+    input.nx = input.ny = input.nz = 0;
+  }
   if (presets.empty() && isos.empty()) presets = "bone";
 
   std::vector<Surface> surfaces;
@@ -511,19 +658,27 @@ int run(int argc, char** argv) {
     std::printf("volume written to %s\n", nrrd_out.c_str());
   }
 
-  for (const Surface& surface : surfaces) {
-    for (const std::string& thread_text : split(thread_list)) {
+  const auto thread_texts = split(thread_list);
+  for (std::size_t surface_index = 0; surface_index < surfaces.size(); ++surface_index) {
+    const Surface& surface = surfaces[surface_index];
+    for (std::size_t thread_index = 0; thread_index < thread_texts.size(); ++thread_index) {
+      const std::string& thread_text = thread_texts[thread_index];
       RunSettings settings{input, surface, static_cast<unsigned>(std::stoi(thread_text)), out_dir};
       std::vector<std::vector<StageFigures>> runs;
-      double cells = 0;
-      for (int r = 0; r < repeat; ++r) runs.push_back(run_stages(settings, cells));
+      double cells = 0, voxels = 0;
+      for (int r = 0; r < repeat; ++r) runs.push_back(run_stages(settings, cells, voxels));
       std::vector<StageFigures> summary = summarize(runs);
 
-      std::optional<StageFigures> whole;
+      // convert mc: everything but the merge; convert tm: the default.
+      std::vector<StageFigures> wholes;
       if (convert && !input.series_dir.empty() && input.repeat_z == 1) {
-        std::vector<std::vector<StageFigures>> convert_runs;
-        for (int r = 0; r < repeat; ++r) convert_runs.push_back({run_convert_once(settings)});
-        whole = summarize(convert_runs).front();
+        for (const char* algorithm : {"mc", "tm"}) {
+          std::vector<std::vector<StageFigures>> convert_runs;
+          for (int r = 0; r < repeat; ++r) {
+            convert_runs.push_back({run_convert_once(settings, algorithm)});
+          }
+          wholes.push_back(summarize(convert_runs).front());
+        }
       }
 
       std::printf("\n%s (%s %g HU), %s thread(s), %.1f M cells (load average %s):\n",
@@ -531,7 +686,34 @@ int run(int argc, char** argv) {
                   thread_text.c_str(), cells / 1e6, load_average().c_str());
       print_header();
       for (const auto& f : summary) print_row(f);
-      if (whole) print_row(*whole);
+      for (const auto& whole : wholes) print_row(whole);
+      for (const auto& whole : wholes) {
+        // The output mesh as core::TriangleMesh holds it: 12 bytes of indices a triangle and
+        // 24 of position and normal a vertex, with about half as many vertices as triangles.
+        const double mesh_bytes = 24.0 * double(whole.triangles_out);
+        const std::string algorithm = whole.name.substr(whole.name.find(' ') + 1);
+        const long peak_kib = convert_process_peak_kib(typemerge, settings, algorithm);
+        if (peak_kib < 0) {
+          std::printf("  %s as its own process: could not run %s under /usr/bin/time\n",
+                      whole.name.c_str(), typemerge.c_str());
+          continue;
+        }
+        const double peak = double(peak_kib) * 1024.0;
+        std::printf("  %s as its own process: peak RSS %.1f MiB, output mesh ~%.1f MiB: %.2f "
+                    "bytes a voxel besides the mesh (%.1f M voxels)\n",
+                    whole.name.c_str(), peak / (1 << 20), mesh_bytes / (1 << 20),
+                    (peak - mesh_bytes) / voxels, voxels / 1e6);
+      }
+      if (!input.series_dir.empty() && surface_index == 0 && thread_index == 0) {
+        const LoadFloor floor = measure_load_floor(input.series_dir, settings.threads, repeat);
+        std::printf("  loader floor, %zu files, %.1f MiB, %u thread(s), best of %d: read bytes "
+                    "%.1f ms (%.0f MiB/s), dcmtk parse %.1f ms; load %.1f ms, of which %.1f ms "
+                    "above DCMTK's parse (headers, decoding to HU, the volume's pages)\n",
+                    floor.files, double(floor.bytes) / (1 << 20), settings.threads, repeat,
+                    floor.read_ms, double(floor.bytes) / (1 << 20) / (floor.read_ms / 1e3),
+                    floor.parse_ms, summary.front().wall_ms,
+                    summary.front().wall_ms - floor.parse_ms);
+      }
 
       if (!vtk) continue;
       const std::string vtk_source =
@@ -577,9 +759,9 @@ int run(int argc, char** argv) {
           summary.back().wall_ms / (vtk_read + fe + vtk_write),
           input.series_dir.empty() ? "nothing (synthetic)" : "DICOM",
           vtk_reads_dicom ? "the DICOM folder" : "the NRRD");
-      if (whole) {
-        std::printf("    convert / (read + FE + write)          %6.2f\n",
-                    whole->wall_ms / (vtk_read + fe + vtk_write));
+      for (const auto& whole : wholes) {
+        std::printf("    %-10s / (read + FE + write)       %6.2f\n", whole.name.c_str(),
+                    whole.wall_ms / (vtk_read + fe + vtk_write));
       }
     }
   }

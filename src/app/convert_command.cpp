@@ -57,12 +57,12 @@ void check_tissue(const core::Volume& volume, float min_hu, float max_hu, const 
                            " would not fit; give --iso or --window in this data's units"};
   }
   const float hi = spec.hi ? static_cast<float>(*spec.hi) : std::numeric_limits<float>::infinity();
-  const auto inside = core::count_in_window(volume, static_cast<float>(spec.lo), hi);
-  if (inside == 0) {
+  const auto cover = core::window_cover(volume, static_cast<float>(spec.lo), hi);
+  if (cover == core::WindowCover::none) {
     throw CommandError{kExitInputRefused, "no surface: no voxel inside " + spec.label +
                                               ", the tissue is absent from this series"};
   }
-  if (inside == volume.size().voxels()) {
+  if (cover == core::WindowCover::all) {
     throw CommandError{kExitInputRefused, "every voxel is inside " + spec.label +
                                               ": the surface would be the volume's box"};
   }

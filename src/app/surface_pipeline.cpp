@@ -36,9 +36,10 @@ struct StepOutput {
   std::optional<core::MeshCheck> check;
 };
 
-// Runs one step, then records its time, triangle count and the full validity check.
+// Runs one step, then records its time, triangle count and the full validity check (on
+// `threads` threads).
 template <typename Step>
-void run_step(SurfaceResult& result, const std::string& name, Step&& step) {
+void run_step(SurfaceResult& result, const std::string& name, unsigned threads, Step&& step) {
   const auto start = Clock::now();
   StepSummary summary;
   summary.step = name;
@@ -46,7 +47,7 @@ void run_step(SurfaceResult& result, const std::string& name, Step&& step) {
   summary.details = std::move(output.details);
   summary.milliseconds = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   summary.triangles = result.mesh.triangles.size();
-  summary.check = output.check ? *output.check : core::check_mesh(result.mesh);
+  summary.check = output.check ? *output.check : core::check_mesh(result.mesh, threads);
   result.steps.push_back(std::move(summary));
 }
 
@@ -66,15 +67,15 @@ StepOutput component_details(const mesh::ComponentReport& report) {
 // so it ends); a step that changed the triangles is undone. A smoothed or reduced surface that slicers reject is worse than the
 // unsmoothed one.
 template <typename Step>
-void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
+void run_moving_step(SurfaceResult& result, const std::string& name, unsigned threads, bool check,
                      std::optional<std::size_t>& crossings, Step&& step) {
   if (!check) {
-    run_step(result, name, std::forward<Step>(step));
+    run_step(result, name, threads, std::forward<Step>(step));
     return;
   }
   if (!crossings) crossings = core::find_self_intersections(result.mesh).pairs.size();
   core::TriangleMesh before = result.mesh;
-  run_step(result, name, std::forward<Step>(step));
+  run_step(result, name, threads, std::forward<Step>(step));
   StepSummary& summary = result.steps.back();
   auto found = core::find_self_intersections(result.mesh);
   const std::size_t made = found.pairs.size();
@@ -106,7 +107,7 @@ void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
   }
   if (found.pairs.size() <= *crossings && restored > 0) {
     summary.details.emplace_back("vertices_put_back", std::to_string(restored));
-    summary.check = core::check_mesh(result.mesh);
+    summary.check = core::check_mesh(result.mesh, threads);
     result.warnings.push_back(name + " made " + std::to_string(made - *crossings) +
                               " pair(s) of crossing triangles; " + std::to_string(restored) +
                               " vertices put back where they were");
@@ -116,7 +117,7 @@ void run_moving_step(SurfaceResult& result, const std::string& name, bool check,
   result.mesh = std::move(before);
   summary.details.emplace_back("undone", "yes");
   summary.triangles = result.mesh.triangles.size();
-  summary.check = core::check_mesh(result.mesh);
+  summary.check = core::check_mesh(result.mesh, threads);
   result.warnings.push_back(name + " undone: it made " + std::to_string(made - *crossings) +
                             " pair(s) of crossing triangles");
 }
@@ -136,7 +137,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
                                                 : core::ExtractOptions::Mode::consistent;
 
-  run_step(result, "extract (" + options.algorithm + ")", [&](core::TriangleMesh& mesh) {
+  run_step(result, "extract (" + options.algorithm + ")", options.threads, [&](core::TriangleMesh& mesh) {
     // A window becomes the field min(v − lo, hi − v) at iso 0 (core/window_field.h).
     const bool window = spec.hi.has_value();
     core::Volume field;
@@ -185,26 +186,27 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
     // Filled at once when asked: one shell, without searching which cavities are its own.
     const auto cavities = fill ? mesh::Cavities::fill : mesh::Cavities::keep;
     run_step(result, fill ? "keep largest solid, cavities filled" : "keep largest solid",
+             options.threads,
              [&result, cavities](core::TriangleMesh& mesh) {
                return component_details(
                    mesh::keep_largest_component(mesh, cavities, &result.steps.back().check));
              });
   }
   if (min_volume > 0) {
-    run_step(result, "remove components under " + number(min_volume) + " mm3",
+    run_step(result, "remove components under " + number(min_volume) + " mm3", options.threads,
              [&](core::TriangleMesh& mesh) {
                return component_details(
                    mesh::remove_small_components(mesh, min_volume, &result.steps.back().check));
              });
   }
   if (fill && !keep_largest) {
-    run_step(result, "fill cavities", [&result](core::TriangleMesh& mesh) {
+    run_step(result, "fill cavities", options.threads, [&result](core::TriangleMesh& mesh) {
       return component_details(mesh::fill_cavities(mesh, &result.steps.back().check));
     });
   }
   std::optional<std::size_t> crossings;  // of the surface as it stands, once counted
   if (finish.smooth_iterations > 0) {
-    run_moving_step(result, "Taubin smoothing", options.check_intersections, crossings,
+    run_moving_step(result, "Taubin smoothing", options.threads, options.check_intersections, crossings,
                     [&](core::TriangleMesh& mesh) {
       mesh::SmoothingOptions smoothing;
       smoothing.iterations = finish.smooth_iterations;
@@ -215,7 +217,8 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
     });
   }
   if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
-    run_moving_step(result, "quadric decimation", options.check_intersections, crossings,
+    run_moving_step(result, "quadric decimation", options.threads,
+                    options.check_intersections, crossings,
                     [&](core::TriangleMesh& mesh) {
       mesh::DecimationOptions decimation;
       decimation.target_triangles = finish.reduce_to_triangles;
@@ -233,7 +236,7 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
 // The inner wall at options.hollow_mm inside the finished surface, appended as a cavity.
 void hollow_surface(SurfaceResult& result, const core::Volume& volume, const SurfaceSpec& spec,
                     const PipelineOptions& options) {
-  run_step(result, "hollow " + number(options.hollow_mm) + " mm", [&](core::TriangleMesh& mesh) {
+  run_step(result, "hollow " + number(options.hollow_mm) + " mm", options.threads, [&](core::TriangleMesh& mesh) {
     const bool window = spec.hi.has_value();
     core::Volume field;
     if (window) {

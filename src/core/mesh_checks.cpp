@@ -1,5 +1,5 @@
-// check_mesh: half-edges and vertex links bucketed by vertex (counting sort, O(n)), each small
-// bucket examined on its own; components by union-find. detail::check_mesh_by_sorting is the
+// check_mesh: triangle corners bucketed by vertex (counting sort, O(n)), each vertex's link
+// examined on its own for the vertex and its edges; components by union-find. detail::check_mesh_by_sorting is the
 // first, simplest version (one global sort of the half-edges, a vector per vertex): it stays as
 // the oracle the fast one is tested against. The fast one exists because the pipeline checks
 // the mesh after every finishing step: on 600 k triangles the sorting version took 0.35 s.
@@ -8,11 +8,14 @@
 #include <algorithm>
 #include <cassert>
 #include <cmath>
+#include <limits>
 #include <numeric>
+#include <stdexcept>
 #include <tuple>
 #include <utility>
 #include <vector>
 
+#include "core/parallel.h"
 #include "core/union_find.h"
 
 namespace typemerge::core {
@@ -32,10 +35,11 @@ class UnionFind {
 // path or one simple cycle: every link vertex has degree at most 2 and the link is connected.
 bool link_is_disk_or_fan_general(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link);
 
-bool link_is_disk_or_fan(std::vector<std::pair<std::uint32_t, std::uint32_t>>& link) {
-  // The common case first, without allocating: a vertex inside a closed, consistently oriented
-  // surface has a link that is one directed cycle. Following "first → second" from link[0]
-  // with distinct firsts returns to the start after exactly link.size() steps only then.
+// The common case, without allocating: a vertex inside a closed, consistently oriented surface
+// has a link that is one directed cycle. Following "first → second" from link[0] with distinct
+// firsts returns to the start after exactly link.size() steps only then (and then the seconds
+// are the firsts). Links longer than 32 go to the general test.
+bool link_is_one_directed_cycle(const std::vector<std::pair<std::uint32_t, std::uint32_t>>& link) {
   if (link.size() <= 32) {
     bool distinct = true;
     for (std::size_t i = 0; i < link.size() && distinct; ++i) {
@@ -61,7 +65,7 @@ bool link_is_disk_or_fan(std::vector<std::pair<std::uint32_t, std::uint32_t>>& l
       if (at == start && steps == link.size()) return true;
     }
   }
-  return link_is_disk_or_fan_general(link);
+  return false;
 }
 
 // Any link: sorted ends for the degrees, union-find for connectivity. The oracle uses only this.
@@ -88,104 +92,182 @@ bool link_is_disk_or_fan_general(std::vector<std::pair<std::uint32_t, std::uint3
   return true;
 }
 
-// Area, signed volume and degenerate triangles; returns the triangles with distinct indices.
-std::vector<std::array<std::uint32_t, 3>> measure_triangles(const TriangleMesh& mesh,
-                                                            MeshCheck& check) {
+bool has_repeated_index(const std::array<std::uint32_t, 3>& t) {
+  return t[0] == t[1] || t[1] == t[2] || t[2] == t[0];
+}
+
+// Triangles per chunk of the area and volume sums: partial sums in chunks of a fixed size,
+// added in chunk order, so the result is the same for any thread count.
+constexpr std::size_t kSumChunk = std::size_t{1} << 16;
+
+// Area, signed volume, degenerate triangles and the count of triangles with distinct indices.
+void measure_triangles(const TriangleMesh& mesh, MeshCheck& check, unsigned threads) {
   const std::size_t n = mesh.positions.size();
+  const std::size_t chunks = (mesh.triangles.size() + kSumChunk - 1) / kSumChunk;
+  struct Partial {
+    double area = 0, volume = 0;
+    std::size_t degenerate = 0, valid = 0;
+  };
+  std::vector<Partial> partial(chunks);
+  detail::run_parallel(chunks, threads, [&](std::size_t c, unsigned) {
+    Partial& sum = partial[c];
+    const std::size_t last = std::min(mesh.triangles.size(), (c + 1) * kSumChunk);
+    for (std::size_t i = c * kSumChunk; i < last; ++i) {
+      const auto& t = mesh.triangles[i];
+      assert(t[0] < n && t[1] < n && t[2] < n);
+      (void)n;
+      if (has_repeated_index(t)) {
+        ++sum.degenerate;
+        continue;
+      }
+      ++sum.valid;
+      const std::array<double, 3> a = triangle_area_vector(mesh, t);
+      if (a[0] == 0.0 && a[1] == 0.0 && a[2] == 0.0) ++sum.degenerate;
+      sum.area += 0.5 * std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+      // Signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2) / 6.
+      const auto& p0 = mesh.positions[t[0]];
+      const auto& p1 = mesh.positions[t[1]];
+      const auto& p2 = mesh.positions[t[2]];
+      const double q1[3] = {p1[0], p1[1], p1[2]};
+      const double q2[3] = {p2[0], p2[1], p2[2]};
+      sum.volume +=
+          (p0[0] * (q1[1] * q2[2] - q1[2] * q2[1]) + p0[1] * (q1[2] * q2[0] - q1[0] * q2[2]) +
+           p0[2] * (q1[0] * q2[1] - q1[1] * q2[0])) /
+          6.0;
+    }
+  });
+  for (const Partial& sum : partial) {
+    check.area += sum.area;
+    check.volume += sum.volume;
+    check.degenerate_triangles += sum.degenerate;
+    check.triangles += sum.valid;
+  }
+}
+
+// The triangles with distinct indices (the oracle's input).
+std::vector<std::array<std::uint32_t, 3>> valid_triangles(const TriangleMesh& mesh) {
   std::vector<std::array<std::uint32_t, 3>> valid;
   valid.reserve(mesh.triangles.size());
   for (const auto& t : mesh.triangles) {
-    assert(t[0] < n && t[1] < n && t[2] < n);
-    (void)n;
-    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) {
-      ++check.degenerate_triangles;
-      continue;
-    }
-    valid.push_back(t);
-    const std::array<double, 3> c = triangle_area_vector(mesh, t);
-    if (c[0] == 0.0 && c[1] == 0.0 && c[2] == 0.0) ++check.degenerate_triangles;
-    check.area += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
-    // Signed volume of the tetrahedron (origin, p0, p1, p2): p0 · (p1 × p2) / 6.
-    const auto& p0 = mesh.positions[t[0]];
-    const auto& p1 = mesh.positions[t[1]];
-    const auto& p2 = mesh.positions[t[2]];
-    const double q1[3] = {p1[0], p1[1], p1[2]};
-    const double q2[3] = {p2[0], p2[1], p2[2]};
-    check.volume +=
-        (p0[0] * (q1[1] * q2[2] - q1[2] * q2[1]) + p0[1] * (q1[2] * q2[0] - q1[0] * q2[2]) +
-         p0[2] * (q1[0] * q2[1] - q1[1] * q2[0])) /
-        6.0;
+    if (!has_repeated_index(t)) valid.push_back(t);
   }
-  check.triangles = valid.size();
   return valid;
 }
 
-// Bucket start offsets (size n + 1) of `count` entries per vertex.
-std::vector<std::uint32_t> prefix_offsets(std::vector<std::uint32_t> count) {
-  std::vector<std::uint32_t> offsets(count.size() + 1, 0);
-  for (std::size_t v = 0; v < count.size(); ++v) offsets[v + 1] = offsets[v] + count[v];
-  return offsets;
+// Counts of the edges and vertices of one range of vertices.
+struct LocalCounts {
+  std::size_t vertices = 0, edges = 0, boundary = 0, non_manifold_edges = 0, inconsistent = 0,
+              non_manifold_vertices = 0;
+};
+
+// The edges {v, x} with x > v seen from v's link. A triangle holding v and x holds one of the
+// half-edges v → x (then x is the "first" of v's corner: the vertex after v) or x → v (x is
+// the "second"), so the uses of the edge are the appearances of x in v's link, and its uses
+// v → x those as first. Only x > v is counted, so each edge is counted once, at its lower end.
+void count_edges_of_link(std::uint32_t v,
+                         const std::vector<std::pair<std::uint32_t, std::uint32_t>>& link,
+                         std::vector<std::pair<std::uint32_t, bool>>& ends, LocalCounts& counts) {
+  ends.clear();
+  for (const auto& [first, second] : link) {
+    if (first > v) ends.emplace_back(first, true);
+    if (second > v) ends.emplace_back(second, false);
+  }
+  std::sort(ends.begin(), ends.end());
+  for (std::size_t i = 0; i < ends.size();) {
+    std::size_t j = i, forward = 0;
+    while (j < ends.size() && ends[j].first == ends[i].first) forward += ends[j++].second ? 1 : 0;
+    const std::size_t uses = j - i;
+    ++counts.edges;
+    if (uses == 1) ++counts.boundary;
+    if (uses > 2) ++counts.non_manifold_edges;
+    if (forward > 1 || uses - forward > 1) ++counts.inconsistent;
+    i = j;
+  }
 }
+
+// Vertices per job of the per-vertex pass.
+constexpr std::size_t kVertexChunk = std::size_t{1} << 15;
 
 }  // namespace
 
-MeshCheck check_mesh(const TriangleMesh& mesh) {
+// One pass over the triangles' corners bucketed by vertex (counting sort, O(n)), where each
+// vertex's link (the edge opposite it in each of its triangles) answers both questions: is the
+// vertex manifold, and how are its edges used (count_edges_of_link). It replaced a version with
+// a second bucketing of the half-edges and copies of the triangles: on 1.1 M triangles, 202 →
+// ... ms and a transient of 72 → ... MiB (pipeline_bench, check stage). The buckets hold corner
+// numbers (3 t + k), 4 bytes each, not the link pairs, which are read from the triangles.
+MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads) {
   MeshCheck check;
   const std::size_t n = mesh.positions.size();
-  const std::vector<std::array<std::uint32_t, 3>> valid = measure_triangles(mesh, check);
-
-  // Edges: half-edges bucketed by their lower vertex; within a bucket (a handful) by the other.
-  std::vector<std::uint32_t> count(n, 0);
-  for (const auto& t : valid) {
-    for (int k = 0; k < 3; ++k) ++count[std::min(t[k], t[(k + 1) % 3])];
+  if (mesh.triangles.size() > std::numeric_limits<std::uint32_t>::max() / 3) {
+    throw std::length_error("check_mesh: more than 1.4 billion triangles");
   }
-  std::vector<std::uint32_t> offsets = prefix_offsets(std::move(count));
-  std::vector<std::uint32_t> fill(offsets.begin(), offsets.end() - 1);
-  // Other end, shifted left by one, with the direction (1: runs low → high) in bit 0.
-  std::vector<std::uint64_t> edge_ends(valid.size() * 3);
-  for (const auto& t : valid) {
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t a = t[k], b = t[(k + 1) % 3];
-      edge_ends[fill[std::min(a, b)]++] = (std::uint64_t(std::max(a, b)) << 1) | (a < b ? 1u : 0u);
+  threads = detail::resolve_threads(threads);
+  measure_triangles(mesh, check, threads);
+
+  // start[v] .. start[v + 1]: the corners at v, after the scatter below.
+  std::vector<std::uint32_t> start(n + 1, 0);
+  for (const auto& t : mesh.triangles) {
+    if (has_repeated_index(t)) continue;
+    for (int k = 0; k < 3; ++k) ++start[t[k] + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v) start[v + 1] += start[v];
+  std::vector<std::uint32_t> corners(start[n]);
+  // Scatter through start[v]++ (each start moves to the next vertex's), then shift back.
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const auto& t = mesh.triangles[i];
+    if (has_repeated_index(t)) continue;
+    for (std::uint32_t k = 0; k < 3; ++k) corners[start[t[k]]++] = static_cast<std::uint32_t>(3 * i) + k;
+  }
+  for (std::size_t v = n; v > 0; --v) start[v] = start[v - 1];
+  start[0] = 0;
+
+  const std::size_t chunks = (n + kVertexChunk - 1) / kVertexChunk;
+  std::vector<LocalCounts> local(chunks);
+  detail::run_parallel(chunks, threads, [&](std::size_t c, unsigned) {
+    LocalCounts& counts = local[c];
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> link;
+    std::vector<std::pair<std::uint32_t, bool>> ends;
+    const std::size_t last = std::min(n, (c + 1) * kVertexChunk);
+    for (std::size_t v = c * kVertexChunk; v < last; ++v) {
+      if (start[v] == start[v + 1]) continue;
+      ++counts.vertices;
+      link.clear();
+      for (std::uint32_t i = start[v]; i < start[v + 1]; ++i) {
+        const auto& t = mesh.triangles[corners[i] / 3];
+        const std::uint32_t k = corners[i] % 3;
+        link.emplace_back(t[(k + 1) % 3], t[(k + 2) % 3]);
+      }
+      const auto vertex = static_cast<std::uint32_t>(v);
+      if (link_is_one_directed_cycle(link)) {
+        // Every edge at v is then used once each way (the firsts are the seconds).
+        for (const auto& entry : link) counts.edges += entry.first > vertex ? 1 : 0;
+        continue;
+      }
+      if (!link_is_disk_or_fan_general(link)) ++counts.non_manifold_vertices;
+      count_edges_of_link(vertex, link, ends, counts);
     }
+  });
+  for (const LocalCounts& counts : local) {
+    check.vertices += counts.vertices;
+    check.edges += counts.edges;
+    check.boundary_edges += counts.boundary;
+    check.non_manifold_edges += counts.non_manifold_edges;
+    check.inconsistent_edges += counts.inconsistent;
+    check.non_manifold_vertices += counts.non_manifold_vertices;
+  }
+  corners = {};
+
+  // Components through shared vertices.
+  std::vector<std::uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  for (const auto& t : mesh.triangles) {
+    if (has_repeated_index(t)) continue;
+    parent[find_root(parent, t[0])] = find_root(parent, t[1]);
+    parent[find_root(parent, t[1])] = find_root(parent, t[2]);
   }
   for (std::size_t v = 0; v < n; ++v) {
-    const auto first = edge_ends.begin() + offsets[v], last = edge_ends.begin() + offsets[v + 1];
-    std::sort(first, last);
-    for (auto i = first; i != last;) {
-      auto j = i;
-      std::size_t forward = 0;
-      while (j != last && (*j >> 1) == (*i >> 1)) forward += (*j++ & 1u);
-      const auto uses = static_cast<std::size_t>(j - i);
-      ++check.edges;
-      if (uses == 1) ++check.boundary_edges;
-      if (uses > 2) ++check.non_manifold_edges;
-      if (forward > 1 || uses - forward > 1) ++check.inconsistent_edges;
-      i = j;
-    }
-  }
-
-  // Vertices: links bucketed by vertex; components by union-find.
-  count.assign(n, 0);
-  for (const auto& t : valid) {
-    for (int k = 0; k < 3; ++k) ++count[t[k]];
-  }
-  offsets = prefix_offsets(std::move(count));
-  fill.assign(offsets.begin(), offsets.end() - 1);
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> link_edges(valid.size() * 3);
-  UnionFind components(n);
-  for (const auto& t : valid) {
-    for (int k = 0; k < 3; ++k) link_edges[fill[t[k]]++] = {t[(k + 1) % 3], t[(k + 2) % 3]};
-    components.unite(t[0], t[1]);
-    components.unite(t[1], t[2]);
-  }
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> link;
-  for (std::size_t v = 0; v < n; ++v) {
-    if (offsets[v] == offsets[v + 1]) continue;
-    ++check.vertices;
-    link.assign(link_edges.begin() + offsets[v], link_edges.begin() + offsets[v + 1]);
-    if (!link_is_disk_or_fan(link)) ++check.non_manifold_vertices;
-    if (components.find(v) == v) ++check.components;
+    if (start[v] != start[v + 1] && parent[v] == v) ++check.components;
   }
 
   check.euler_characteristic = static_cast<std::int64_t>(check.vertices) -
@@ -198,7 +280,7 @@ MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCh
                                           std::size_t removed_components) {
   assert(before.closed_manifold() && removed_components <= before.components);
   MeshCheck check;
-  measure_triangles(mesh, check);
+  measure_triangles(mesh, check, 1);
   check.vertices = mesh.positions.size();
   check.edges = 3 * check.triangles / 2;
   check.components = before.components - removed_components;
@@ -213,7 +295,8 @@ namespace detail {
 MeshCheck check_mesh_by_sorting(const TriangleMesh& mesh) {
   MeshCheck check;
   const std::size_t n = mesh.positions.size();
-  const std::vector<std::array<std::uint32_t, 3>> valid = measure_triangles(mesh, check);
+  measure_triangles(mesh, check, 1);
+  const std::vector<std::array<std::uint32_t, 3>> valid = valid_triangles(mesh);
 
   // Edges: half-edges sorted by their undirected key, then by direction.
   struct HalfEdge {

@@ -37,8 +37,11 @@ struct MeshCheck {
 // everything else; a triangle with distinct indices but zero area (the cross product of its
 // edge vectors, computed in double, is exactly zero) counts as degenerate but still takes
 // part in the topology, which it does not disturb.
+// `threads` (0: hardware concurrency) share the per-vertex work; the result is the same for
+// any count (area and volume are summed in fixed chunks, in order). Throws std::length_error
+// above 1.4 billion triangles (corners are numbered in 32 bits).
 // Precondition: every index < mesh.positions.size().
-MeshCheck check_mesh(const TriangleMesh& mesh);
+MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads = 1);
 
 // check_mesh of `mesh` when it is a mesh that check_mesh found closed and manifold (`before`)
 // with `removed_components` whole components taken out and no vertex left unused: every

@@ -162,5 +162,29 @@ TEST(MeshChecks, BucketedCheckEqualsTheSortingOracle) {
   }
 }
 
+// Big enough for several chunks of the parallel passes (65,536 triangles, 32,768 vertices),
+// with defects of every kind spread over them: the same result as the oracle on any thread
+// count, area and volume included bit for bit.
+TEST(MeshChecks, ParallelCheckEqualsTheOracleOnAnyThreadCount) {
+  TriangleMesh mesh = extract_isosurface(test::noise_volume(60, 58, 56, 3), 0.5f);
+  ASSERT_GT(mesh.triangles.size(), 200000u);
+  const auto t = mesh.triangles.size();
+  mesh.triangles.push_back(mesh.triangles[t / 3]);             // an edge used four times
+  std::swap(mesh.triangles[t / 2][0], mesh.triangles[t / 2][1]);  // flipped: inconsistent
+  mesh.triangles.erase(mesh.triangles.begin() + static_cast<std::ptrdiff_t>(2 * t / 3));  // hole
+  mesh.triangles.push_back({5, 5, 9});                          // repeated index
+  mesh.positions.push_back(mesh.positions[7]);                   // zero area
+  mesh.triangles.push_back({7, static_cast<std::uint32_t>(mesh.positions.size() - 1), 8});
+  const MeshCheck oracle = detail::check_mesh_by_sorting(mesh);
+  EXPECT_FALSE(oracle.closed_manifold());
+  EXPECT_GT(oracle.non_manifold_edges, 0u);
+  EXPECT_GT(oracle.inconsistent_edges, 0u);
+  EXPECT_GT(oracle.boundary_edges, 0u);
+  EXPECT_GE(oracle.degenerate_triangles, 2u);
+  for (unsigned threads : {1u, 2u, 3u, 8u}) {
+    EXPECT_TRUE(same(check_mesh(mesh, threads), oracle)) << threads;
+  }
+}
+
 }  // namespace
 }  // namespace typemerge::core
