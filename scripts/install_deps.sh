@@ -20,6 +20,7 @@ packages=(
   dcm2niix                # independent reference for the loader tests
   clang libclang-rt-14-dev  # fuzz/: Clang 14 and its libFuzzer + sanitizer runtimes
   locales tzdata          # determinism tests: a comma-decimal locale (localedef), time zones
+  time                    # pipeline_bench: peak RSS of convert as its own process (/usr/bin/time)
 )
 
 missing=()

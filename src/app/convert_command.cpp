@@ -577,6 +577,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
       ordered_json details = ordered_json::object();
       for (const auto& [key, value] : step.details) details[key] = value;
       step_list.push_back({{"step", step.step}, {"ms", step.milliseconds},
+                           {"check_ms", step.check_milliseconds},
                            {"triangles", step.triangles}, {"details", details},
                            {"validity", check_json(step.check)}});
     }

@@ -47,7 +47,10 @@ void run_step(SurfaceResult& result, const std::string& name, unsigned threads, 
   summary.details = std::move(output.details);
   summary.milliseconds = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   summary.triangles = result.mesh.triangles.size();
+  const auto checked = Clock::now();
   summary.check = output.check ? *output.check : core::check_mesh(result.mesh, threads);
+  summary.check_milliseconds =
+      std::chrono::duration<double, std::milli>(Clock::now() - checked).count();
   result.steps.push_back(std::move(summary));
 }
 

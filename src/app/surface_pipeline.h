@@ -56,7 +56,8 @@ struct PipelineOptions {
 
 struct StepSummary {
   std::string step;
-  double milliseconds = 0;
+  double milliseconds = 0;        // the step itself
+  double check_milliseconds = 0;  // checking its result (0 when the step derived the check)
   std::size_t triangles = 0;  // after the step
   core::MeshCheck check;      // after the step
   std::vector<std::pair<std::string, std::string>> details;

@@ -32,6 +32,10 @@ struct Components {
 
 using core::find_root;
 
+// Labels are numbered in the order of each component's first triangle. Unions point the larger
+// root at the smaller, so parent[v] <= v and one pass in increasing v flattens the forest;
+// boxes are then taken per vertex (each once, not once per triangle around it): together
+// 19-29 -> ... ms on the abdomen's 480 k bone triangles (convert --report).
 Components label_components(const core::TriangleMesh& mesh) {
   const std::size_t n = mesh.positions.size();
   std::vector<std::uint32_t> parent(n);
@@ -44,40 +48,48 @@ Components label_components(const core::TriangleMesh& mesh) {
       if (a != b) parent[std::max(a, b)] = std::min(a, b);
     }
   }
+  for (std::size_t v = 0; v < n; ++v) parent[v] = parent[parent[v]];
 
   Components c;
   constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> label_of_root(n, kNone);
+  std::vector<std::uint32_t> label(n, kNone);
   c.of_triangle.resize(mesh.triangles.size());
-  constexpr double kInf = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
     const auto& t = mesh.triangles[i];
-    const std::uint32_t root = find_root(parent, t[0]);
-    if (label_of_root[root] == kNone) {
-      label_of_root[root] = static_cast<std::uint32_t>(c.count++);
-      c.volume.push_back(0.0);
-      c.triangles.push_back(0);
-      c.box_min.push_back({kInf, kInf, kInf});
-      c.box_max.push_back({-kInf, -kInf, -kInf});
+    const std::uint32_t root = parent[t[0]];
+    if (label[root] == kNone) {
+      label[root] = static_cast<std::uint32_t>(c.count++);
       c.some_vertex.push_back(t[0]);
     }
-    const std::uint32_t label = label_of_root[root];
-    c.of_triangle[i] = label;
-    ++c.triangles[label];
+    c.of_triangle[i] = label[root];
+  }
+  // From here on, label[v] is the label of v's component (kNone: v is in no triangle).
+  for (std::size_t v = 0; v < n; ++v) label[v] = label[parent[v]];
+  c.volume.assign(c.count, 0.0);
+  c.triangles.assign(c.count, 0);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  c.box_min.assign(c.count, {kInf, kInf, kInf});
+  c.box_max.assign(c.count, {-kInf, -kInf, -kInf});
+  for (std::size_t v = 0; v < n; ++v) {
+    if (label[v] == kNone) continue;
+    const Point p = to_point(mesh.positions[v]);
+    for (int k = 0; k < 3; ++k) {
+      c.box_min[label[v]][k] = std::min(c.box_min[label[v]][k], p[k]);
+      c.box_max[label[v]][k] = std::max(c.box_max[label[v]][k], p[k]);
+    }
+  }
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const auto& t = mesh.triangles[i];
+    const std::uint32_t l = c.of_triangle[i];
+    ++c.triangles[l];
     const Point p0 = to_point(mesh.positions[t[0]]);
     const Point p1 = to_point(mesh.positions[t[1]]);
     const Point p2 = to_point(mesh.positions[t[2]]);
     // Signed volume of the tetrahedron (origin, p0, p1, p2), as in core::check_mesh.
-    c.volume[label] += (p0[0] * (p1[1] * p2[2] - p1[2] * p2[1]) +
-                        p0[1] * (p1[2] * p2[0] - p1[0] * p2[2]) +
-                        p0[2] * (p1[0] * p2[1] - p1[1] * p2[0])) /
-                       6.0;
-    for (const Point& p : {p0, p1, p2}) {
-      for (int k = 0; k < 3; ++k) {
-        c.box_min[label][k] = std::min(c.box_min[label][k], p[k]);
-        c.box_max[label][k] = std::max(c.box_max[label][k], p[k]);
-      }
-    }
+    c.volume[l] += (p0[0] * (p1[1] * p2[2] - p1[2] * p2[1]) +
+                    p0[1] * (p1[2] * p2[0] - p1[0] * p2[2]) +
+                    p0[2] * (p1[0] * p2[1] - p1[1] * p2[0])) /
+                   6.0;
   }
   return c;
 }
