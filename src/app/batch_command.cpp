@@ -339,6 +339,7 @@ class BatchRun {
   fs::path work_root_;
   std::string parameters_;
   std::uint64_t budget_ = 0;
+  ConversionShape shape_;  // what each study's conversion holds besides its grid
   unsigned threads_per_study_ = 1;
   std::deque<PendingStudy> queue_;
   std::vector<StudyOutcome> outcomes_;
@@ -441,6 +442,7 @@ int BatchRun::run() {
   shard_ = parse_shard(options_.shard);
   budget_ = options_.max_memory.empty() ? default_memory_budget()
                                         : parse_memory_size(options_.max_memory);
+  shape_ = conversion_shape(options_.convert);
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   threads_per_study_ = options_.threads > 0 ? options_.threads
                                             : std::max(1u, cores / std::max(1u, options_.jobs));
@@ -514,7 +516,8 @@ int BatchRun::run() {
     while (!queue_.empty() && running.size() < options_.jobs) {
       const StudyPlan& plan = *queue_.front().plan;
       const std::uint64_t estimate = conversion_memory_estimate(
-          working_voxels(plan.grid_size, plan.spacing_mm, options_.convert.voxel_size_mm));
+          working_voxels(plan.grid_size, plan.spacing_mm, options_.convert.voxel_size_mm),
+          shape_);
       if (!running.empty() && reserved + estimate > budget_) break;
       PendingStudy next = std::move(queue_.front());
       queue_.pop_front();

@@ -219,7 +219,8 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
   command->add_option("--report", options.report, "Write a JSON report of the run");
   command->add_option("--max-memory", options.max_memory,
                       "Memory bound, e.g. 8G (default: 3/4 of the physical memory): a series "
-                      "whose conversion would need more (16 bytes a voxel + 64 MiB) is refused "
+                      "whose conversion would need more (about 6 bytes a voxel + 211 MiB for one surface, "
+                      "more per surface, window, --reduce-to and --hollow) is refused "
                       "before loading, and the process's address space is limited to it");
   add_surface_options(*command->add_option_group("Surface"), options);
 }
@@ -302,6 +303,17 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
                     "identify the patient; left out by default)");
 }
 
+ConversionShape conversion_shape(const ConvertOptions& options) {
+  ConversionShape shape;
+  const std::vector<SurfaceSpec> specs = surface_specs(options);
+  shape.surfaces = specs.size();
+  for (const SurfaceSpec& spec : specs) shape.window_surfaces += spec.hi.has_value() ? 1 : 0;
+  shape.reduces = options.finish != "none" && (options.finish_options.reduce_to_triangles > 0 ||
+                                               options.finish_options.max_error_mm > 0);
+  shape.hollows = options.hollow_mm > 0;
+  return shape;
+}
+
 int run_convert(const ConvertOptions& options, std::ostream& log) {
   const auto run_start = Clock::now();
   // Progress for people at a terminal; scripts and logs (stderr not a TTY) get only results.
@@ -310,6 +322,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
     if (interactive) log << "... " << what << "\n" << std::flush;
   };
   std::vector<SurfaceSpec> specs = surface_specs(options);
+  const ConversionShape shape = conversion_shape(options);
   std::vector<std::string> notes;  // what was adapted to the data, for the log and the report
   // A stated bound on every run, not only when asked: three quarters of the physical memory
   // by default.
@@ -342,10 +355,10 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
     const std::uint64_t voxels = working_voxels(s.grid_size(), s.spacing_mm(), options.voxel_size_mm);
-    if (conversion_memory_estimate(voxels) > max_memory) {
+    const std::uint64_t estimate = conversion_memory_estimate(voxels, shape);
+    if (estimate > max_memory) {
       throw CommandError{kExitInputRefused,
-                         "series " + s.id + " would need about " +
-                             format_megabytes(conversion_memory_estimate(voxels)) +
+                         "series " + s.id + " would need about " + format_megabytes(estimate) +
                              " to convert, more than --max-memory " + format_megabytes(max_memory)};
     }
     // From here on (pixels, preprocessing, meshes) the bound is hard. The scan before it reads

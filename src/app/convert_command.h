@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "app/input_options.h"
+#include "app/memory_budget.h"
 #include "app/surface_pipeline.h"
 
 namespace typemerge::app {
@@ -52,6 +53,8 @@ void add_surface_options(CLI::App& command, ConvertOptions& options);
 // The surfaces the options ask for; throws CommandError (usage) when they ask for none or for an
 // unknown preset.
 std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options);
+// What the options make a conversion hold, for conversion_memory_estimate (app/memory_budget.h).
+ConversionShape conversion_shape(const ConvertOptions& options);
 int run_convert(const ConvertOptions& options, std::ostream& log);
 
 }  // namespace typemerge::app

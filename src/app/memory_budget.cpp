@@ -10,8 +10,16 @@
 
 namespace typemerge::app {
 
-std::uint64_t conversion_memory_estimate(std::uint64_t voxels) {
-  return voxels * 16 + (64ull << 20);
+std::uint64_t conversion_memory_estimate(std::uint64_t voxels, const ConversionShape& shape) {
+  const double surfaces = static_cast<double>(std::max<std::size_t>(shape.surfaces, 1));
+  const double windows = static_cast<double>(shape.window_surfaces);
+  const double per_voxel = 4.0 + 2.0 * surfaces + 5.0 * windows +
+                           surfaces * ((shape.reduces ? 4.0 : 0.0) + (shape.hollows ? 10.0 : 0.0));
+  const double fixed_mib = 192.0 + 128.0 * (surfaces - 1.0) + 192.0 * windows +
+                           surfaces * ((shape.reduces ? 64.0 : 0.0) + (shape.hollows ? 192.0 : 0.0));
+  const double bytes = 1.1 * (static_cast<double>(voxels) * per_voxel + fixed_mib * (1 << 20));
+  // Saturates instead of wrapping: an absurd grid is then simply over any budget.
+  return bytes < 1.8e19 ? static_cast<std::uint64_t>(bytes) : std::uint64_t{1} << 63;
 }
 
 std::uint64_t working_voxels(const std::array<std::uint64_t, 3>& size,

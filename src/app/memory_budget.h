@@ -4,17 +4,37 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
 namespace typemerge::app {
 
-// Peak memory of converting a series of `voxels` voxels: measured 368 MB (abdomen) and 562 MB
-// (head_tilt_variable resampled) peak RSS for 35 M voxels with bone and skin made concurrently
-// (batch summary), i.e. up to about 15 bytes a voxel (the HU volume, its table-removed copy and
-// masks, two meshes) plus the process itself; 16 bytes a voxel and 64 MiB (629 MB here) leave
-// a thin margin.
-std::uint64_t conversion_memory_estimate(std::uint64_t voxels);
+// What a conversion holds besides its grid, from its options: the surfaces are made at once,
+// each with its mesh and extraction state; a window preset (a `hi` bound) meshes a field, one
+// more volume of floats; --reduce-to / --max-error copy the mesh into OpenMesh; --hollow holds
+// a distance field per surface.
+struct ConversionShape {
+  std::size_t surfaces = 1;
+  std::size_t window_surfaces = 0;
+  bool reduces = false;
+  bool hollows = false;
+};
+
+// Address space a conversion of `voxels` voxels needs, an upper bound that --max-memory is
+// checked against before loading (and that batch schedules by). Fitted to the smallest
+// address-space limit (ulimit -v) under which `convert --threads 2` succeeded, on a synthetic
+// 512 × 512 × 300 series (78.6 M voxels) and the abdomen (35.1 M), 2026-12-02:
+//   bone 615 / 379 MiB, muscle (window) 1135 / 804, bone,skin 772 / 599,
+//   bone,skin,muscle 1465 / 1135, bone --reduce-to 835 / 505, skin --hollow 3 1402 / 804;
+// i.e. 4 bytes a voxel for the volume, about 2 more per surface (5 more for a window's field
+// and its larger surface), and some 190 MiB of the process's own mappings (libraries, thread
+// stacks, malloc arenas), 128 more per extra surface thread and 192 per window; plus a tenth.
+// Every case above is covered, by 3 to 40 %. Surfaces far larger than a CT tissue's (noise meshed at its mean) can
+// exceed it: then the address-space limit fails the conversion cleanly ("out of memory").
+// (Until 2026-12-02 the estimate was 16 bytes a voxel + 64 MiB whatever the options: over
+// twice what bone needs, and below what three presets with a window need.)
+std::uint64_t conversion_memory_estimate(std::uint64_t voxels, const ConversionShape& shape = {});
 
 // The voxels to pass to conversion_memory_estimate for a grid of `size` voxels spaced
 // `spacing_mm` apart: the grid itself, plus, when --voxel-size resamples it

@@ -35,7 +35,7 @@ using core::find_root;
 // Labels are numbered in the order of each component's first triangle. Unions point the larger
 // root at the smaller, so parent[v] <= v and one pass in increasing v flattens the forest;
 // boxes are then taken per vertex (each once, not once per triangle around it): together
-// 19-29 -> ... ms on the abdomen's 480 k bone triangles (convert --report).
+// 19-29 -> 13-15 ms on the abdomen's 480 k bone triangles (convert --report, 2 threads).
 Components label_components(const core::TriangleMesh& mesh) {
   const std::size_t n = mesh.positions.size();
   std::vector<std::uint32_t> parent(n);

@@ -27,6 +27,7 @@ using typemerge::app::folder_id_of;
 using typemerge::test::fresh_dir;
 using typemerge::test::read_file_bytes;
 using typemerge::test::run_cli;
+namespace ct_writer = typemerge::ct_writer;
 
 const fs::path& tree() {
   static const fs::path root = [] {
@@ -459,19 +460,28 @@ TEST(Batch, TimeAndMemoryLimitsFailTheStudyNotTheBatch) {
   EXPECT_EQ(summary["failed"], 5);
   EXPECT_NE((*result_for(summary, "siteC/studyE"))["reason"].get<std::string>().find("time limit"),
             std::string::npos);
-  // A budget below a study's estimate (16 bytes a voxel + 64 MiB): refused before loading.
+  // A budget below a study's estimate (app/memory_budget.h; 211 MiB for these tiny bone
+  // studies): refused before loading.
   run = run_cli(batch(work / "small", "--max-memory 40M"));
   EXPECT_EQ(run.exit_code, 6) << run.err;
   summary = summary_of(work / "small" / "summary.json");
   EXPECT_EQ(summary["converted"], 0);
   EXPECT_NE((*result_for(summary, "siteC/studyE"))["reason"].get<std::string>().find(
-                "would need about 64 MiB to convert, more than --max-memory 40 MiB"),
+                "would need about 211 MiB to convert, more than --max-memory 40 MiB"),
             std::string::npos);
   const auto convert = run_cli("convert " + (tree() / "siteC").string() +
                                " --preset bone --max-memory 1M -o " + (work / "x.stl").string());
   EXPECT_EQ(convert.exit_code, 1);
   EXPECT_NE(convert.err.find("more than --max-memory"), std::string::npos) << convert.err;
   EXPECT_FALSE(fs::exists(work / "x.stl"));
+  // The estimate counts what the options hold: three surfaces, one of them a window.
+  const auto three = run_cli("convert " + (tree() / "siteC").string() +
+                             " --preset bone,skin,muscle --max-memory 400M -o " +
+                             (work / "three").string());
+  EXPECT_EQ(three.exit_code, 1);
+  EXPECT_NE(three.err.find("would need about 704 MiB to convert, more than --max-memory 400 MiB"),
+            std::string::npos)
+      << three.err;
   // The estimate counts the grid --voxel-size asks for (here hundreds of times the series).
   const auto resampled = run_cli("convert " + (tree() / "siteC").string() +
                                  " --preset bone --voxel-size 0.02 --max-memory 1G -o " +
@@ -481,13 +491,33 @@ TEST(Batch, TimeAndMemoryLimitsFailTheStudyNotTheBatch) {
       << resampled.err;
   EXPECT_FALSE(fs::exists(work / "x.stl"));
 #if !defined(__SANITIZE_ADDRESS__)
-  // Just above the estimate the hard address-space limit decides: the allocation fails inside
-  // the study's process, which says so; the batch reports it and goes on.
-  run = run_cli(batch(work / "hard", "--max-memory 65M"));
+  // Above the estimate the hard address-space limit decides. The estimate covers CT tissues;
+  // noise meshed at its mean has a surface in nearly every cell, several times what the
+  // estimate allows per voxel, so with a budget just above the estimate the allocation fails
+  // inside the study's process, which says so; the batch reports it and goes on.
+  const fs::path noise_tree = work / "noise_tree";
+  {
+    ct_writer::SeriesLayout layout;
+    layout.uid_seed = "batch_test/noise";
+    layout.columns = layout.rows = 160;
+    layout.slices = 96;
+    std::uint64_t state = 12345;
+    layout.hu = [state](int i, int j, int k) mutable {
+      state = state * 6364136223846793005ull + 1442695040888963407ull +
+              std::uint64_t(i + 1000 * (j + 1000 * k));
+      if (i == 0) return -1000.0;  // some air, so the values read as Hounsfield units
+      return (state >> 33) % 2 == 0 ? 300.0 : 100.0;  // bone preset: inside at 226 HU
+    };
+    ct_writer::write_series(ct_writer::make_axial_series(layout), noise_tree / "noise");
+  }
+  // 160 x 160 x 96 voxels: estimate 1.1 x (6 bytes a voxel + 192 MiB) = 227 MiB.
+  run = run_cli("batch " + noise_tree.string() + " --preset bone --out " +
+                (work / "hard").string() + " --max-memory 240M");
   summary = summary_of(work / "hard" / "summary.json");
-  EXPECT_EQ(summary["studies"], 5);
-  EXPECT_EQ((*result_for(summary, "siteC/studyE"))["reason"],
-            "out of memory (limit 65 MiB, --max-memory)");
+  EXPECT_EQ(summary["studies"], 1);
+  ASSERT_EQ(summary["results"].size(), 1u) << summary.dump();
+  EXPECT_EQ(summary["results"][0]["reason"], "out of memory (limit 240 MiB, --max-memory)")
+      << summary.dump();
 #endif
 }
 
