@@ -47,7 +47,7 @@
 //
 // --vtk runs bench/vtk_pipeline.py on the same input: the DICOM folder (vtkDICOMImageReader)
 // for --series, else the volume written as NRRD (to --write-nrrd or --out-dir). It needs
-// Debian's python3-vtk9 (--vtk-python, --vtk-script to override) and times VTK's read →
+// Debian's python3-vtk9 and python3-numpy (--vtk-python, --vtk-script to override) and times VTK's read →
 // vtkFlyingEdges3D → binary vtkSTLWriter per stage on the same samples; the ratios to ours are
 // printed from that one run.
 #include <dcmtk/dcmdata/dcfilefo.h>
@@ -498,7 +498,7 @@ long convert_process_peak_kib(const std::string& typemerge, const RunSettings& s
   command += settings.surface.preset ? " --preset " + settings.surface.name
                                      : " --iso " + std::to_string(settings.surface.lo);
   command += " --algorithm " + algorithm + " --threads " + std::to_string(settings.threads) +
-             " -o '" + out.string() + "' > /dev/null";
+             " -o '" + out.string() + "' > /dev/null 2>&1";
   if (std::system(command.c_str()) != 0) return -1;
   std::ifstream in(figure);
   long kib = -1;
