@@ -736,9 +736,17 @@ class PieceMerger {
 
   // Counter-clockwise, and no two edges of the projected loop meet except consecutive ones
   // at their shared corner.
-  bool flat_is_simple() const {
+  bool flat_is_simple() {
     const std::size_t n = flat_.size();
     if (n < 3) return false;
+    // Each edge's bounding box once (xmin, xmax, ymin, ymax), for the quadratic pair test.
+    edge_boxes_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& a = flat_[i];
+      const auto& b = flat_[(i + 1) % n];
+      edge_boxes_[i] = {std::min(a[0], b[0]), std::max(a[0], b[0]), std::min(a[1], b[1]),
+                        std::max(a[1], b[1])};
+    }
     double area = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       const auto& a = flat_[i];
@@ -767,12 +775,9 @@ class PieceMerger {
           }
           continue;
         }
-        if (std::max(a[0], b[0]) < std::min(c[0], d[0]) ||
-            std::max(c[0], d[0]) < std::min(a[0], b[0]) ||
-            std::max(a[1], b[1]) < std::min(c[1], d[1]) ||
-            std::max(c[1], d[1]) < std::min(a[1], b[1])) {
-          continue;
-        }
+        const auto& p = edge_boxes_[i];
+        const auto& q = edge_boxes_[j];
+        if (p[1] < q[0] || q[1] < p[0] || p[3] < q[2] || q[3] < p[2]) continue;
         // Closed segments meet (collinear overlap included, conservatively).
         if (orient2d(a, b, c) * orient2d(a, b, d) <= 0.0 &&
             orient2d(c, d, a) * orient2d(c, d, b) <= 0.0) {
@@ -794,12 +799,12 @@ class PieceMerger {
     return out;
   }
 
-  // Shape of the triangle of loop vertices (a, b, c) in millimetres: 1 − the cosine of its
+  // Shape of the triangle at loop positions (a, b, c) in millimetres: 1 − the cosine of its
   // smallest angle, so larger is better.
-  double shape(VertexId a, VertexId b, VertexId c) const {
-    const P3 pa = in_mm(mesh_.positions[a]);
-    const P3 pb = in_mm(mesh_.positions[b]);
-    const P3 pc = in_mm(mesh_.positions[c]);
+  double shape(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
+    const P3& pa = mm_[a];
+    const P3& pb = mm_[b];
+    const P3& pc = mm_[c];
     auto cosine = [](const P3& o, const P3& p, const P3& q) {
       const P3 u = sub(p, o);
       const P3 v = sub(q, o);
@@ -834,6 +839,8 @@ class PieceMerger {
   // Triangulates the projected loop by clipping, each time, the valid ear of best shape.
   bool clip_ears(std::span<const VertexId> loop, std::vector<Triangle>& out) {
     const auto n = static_cast<std::uint32_t>(loop.size());
+    mm_.clear();
+    for (VertexId v : loop) mm_.push_back(in_mm(mesh_.positions[v]));
     ears_.clear();
     prev_.resize(n);
     succ_.resize(n);
@@ -843,7 +850,7 @@ class PieceMerger {
       succ_[i] = (i + 1) % n;
     }
     auto score_ear = [&](std::uint32_t i) {
-      score_[i] = ear_valid(i) ? shape(loop[prev_[i]], loop[i], loop[succ_[i]]) : -1.0;
+      score_[i] = ear_valid(i) ? shape(prev_[i], i, succ_[i]) : -1.0;
     };
     for (std::uint32_t i = 0; i < n; ++i) score_ear(i);
     std::uint32_t any = 0;
@@ -868,7 +875,7 @@ class PieceMerger {
       score_ear(a);
       score_ear(c);
     }
-    flip_for_shape(loop);
+    flip_for_shape();
     for (const auto& t : ears_) out.push_back({loop[t[0]], loop[t[1]], loop[t[2]]});
     return true;
   }
@@ -878,9 +885,15 @@ class PieceMerger {
   // pair's smallest angle, and the new edge joins no two vertices on one face of the box.
   // The result is still a triangulation of the projected loop, so every guarantee holds;
   // greedy clipping alone leaves needles beside short loop edges.
-  void flip_for_shape(std::span<const VertexId> loop) {
+  void flip_for_shape() {
     const std::size_t count = ears_.size();
     if (count < 2) return;
+    // Each triangle's shape, kept as flips change them (shape is the same for any rotation
+    // of a triangle's corners: the same three cosines).
+    ear_shape_.resize(count);
+    for (std::size_t t = 0; t < count; ++t) {
+      ear_shape_[t] = shape(ears_[t][0], ears_[t][1], ears_[t][2]);
+    }
     // The triangle across each edge (ears_[t][k], ears_[t][k + 1]), by a quadratic search
     // (a few to a few dozen triangles).
     for (int round = 0; round < 4; ++round) {
@@ -909,13 +922,15 @@ class PieceMerger {
               !(orient2d(flat_[d], flat_[b], flat_[c]) > kMinDoubleArea)) {
             continue;
           }
-          const double before = std::min(shape(loop[a], loop[b], loop[c]),
-                                          shape(loop[b], loop[a], loop[d]));
-          const double after = std::min(shape(loop[a], loop[d], loop[c]),
-                                         shape(loop[d], loop[b], loop[c]));
+          const double before = std::min(ear_shape_[t], ear_shape_[u]);
+          const double shape_t = shape(a, d, c);
+          const double shape_u = shape(d, b, c);
+          const double after = std::min(shape_t, shape_u);
           if (!(after > before * (1.0 + 1e-9) + 1e-12)) continue;
           ears_[t] = {a, d, c};
           ears_[u] = {d, b, c};
+          ear_shape_[t] = shape_t;
+          ear_shape_[u] = shape_u;
           flipped = true;
         }
       }
@@ -971,6 +986,9 @@ class PieceMerger {
   std::vector<VertexId> loop_;
   std::vector<std::array<double, 2>> flat_;
   std::vector<std::uint8_t> flat_masks_;
+  std::vector<P3> mm_;             // the loop in patient millimetres, for shape()
+  std::vector<std::array<double, 4>> edge_boxes_;  // flat_is_simple's scratch
+  std::vector<double> ear_shape_;  // shape() of each triangle in ears_ (flip_for_shape)
   std::vector<std::uint32_t> prev_;
   std::vector<std::uint32_t> succ_;
   std::vector<double> score_;
