@@ -1,8 +1,17 @@
-// decimate_mesh: quadric-ordered edge collapses with OpenMesh's decimater (Garland & Heckbert
-// 1997 quadrics for the order; half-edge collapses, so every vertex of the result is a vertex
-// of the input), bounded by a Hausdorff tolerance so it is never blind.
+// decimate_mesh: bounded quadric decimation (Garland & Heckbert 1997 quadrics for the order;
+// half-edge collapses, so every vertex of the result is a vertex of the input) by one of two
+// libraries:
+//  * meshoptimizer (the default; mesh/meshopt_decimation.h): about 20 times faster on CT
+//    surfaces, but its bound is a quadric (mean squared plane distance), not a Hausdorff
+//    distance, and it does not test the link condition, so its result is checked after
+//    (closed, manifold, oriented, the same Euler characteristic and components, no zero-area
+//    triangle, no new crossing pair, sampled distance within max_error) and refused when any
+//    check fails: then OpenMesh runs on the input, and the report says why (`fallback`).
+//  * OpenMesh's decimater (decimate_with_openmesh, below): slower, and its guarantees hold by
+//    construction, so it is the fallback, and the choice for input meshoptimizer's checks need
+//    (a surface that is not closed manifold: OpenMesh splits non-manifold vertices first).
 //
-// Modules, in OpenMesh's terms:
+// OpenMesh's modules, in its terms:
 //  * ModQuadricT (priority, no bound): collapses the edge of least area-weighted quadric
 //    error first;
 //  * ModHausdorffT (binary): a collapse is allowed only while every original vertex that
@@ -19,8 +28,9 @@
 // per fan before decimating (see detail/openmesh_conversion.h) and stay split.
 //
 // Speed: OpenMesh's decimater is a single-threaded heap over half-edge collapses, and the
-// Hausdorff module re-measures the points of every affected face per candidate. It is the
-// slow step of the pipeline on large CT surfaces (see tests/mesh/mesh_bench.cpp).
+// Hausdorff module re-measures the points of every affected face per candidate: about 24 s
+// for 800 k triangles of abdomen bone; meshoptimizer's passes of independent collapses plus
+// the checks take a fraction of that (tests/mesh/mesh_bench.cpp --stl prints both).
 #pragma once
 
 #include <cstddef>
@@ -32,6 +42,9 @@
 
 namespace typemerge::mesh {
 
+enum class Decimator { meshopt, openmesh };
+const char* to_string(Decimator decimator);  // "meshopt", "openmesh"
+
 struct DecimationOptions {
   // Stop at this many triangles (0: decimate as far as the bounds allow). A closed mesh
   // loses two triangles per collapse, so the result may end one below an odd target.
@@ -39,8 +52,13 @@ struct DecimationOptions {
   // Hausdorff tolerance in mesh units (mm after to_patient); must be > 0. Pass
   // std::numeric_limits<double>::infinity() to decimate blindly on purpose.
   double max_error = 0.1;
-  // Largest normal turn of any face in one collapse, degrees, in (0, 180].
+  // Largest normal turn of any face in one collapse, degrees, in (0, 180] (OpenMesh only;
+  // meshoptimizer refuses any collapse that flips a face by more than 90°).
   double max_normal_deviation = 60.0;
+  // Which library to try first; meshopt falls back to openmesh when its result fails a check.
+  Decimator decimator = Decimator::meshopt;
+  // Threads for meshopt's checks (0: hardware concurrency); OpenMesh is single-threaded.
+  unsigned threads = 0;
 };
 
 struct DecimationReport {
@@ -52,10 +70,31 @@ struct DecimationReport {
   std::size_t rejected_triangles = 0;  // faces OpenMesh could not hold (then nothing done)
   std::vector<std::string> warnings;
   Validity validity;  // of the result
+
+  Decimator decimator = Decimator::openmesh;  // the library whose result this is
+  // Why meshoptimizer's result was refused, e.g. "3 non-manifold edges" or "sampled distance
+  // 0.31 mm > 0.2 mm"; empty when it was accepted or not tried.
+  std::string fallback;
+  int meshopt_passes = 0;  // meshopt_simplify runs (each pass keeps the last one's problems)
+  std::size_t kept_triangles = 0;          // input triangles meshopt kept around problems
+  std::vector<std::string> meshopt_notes;  // per pass that found problems: what, how many
+  // meshopt's checks: the sampled two-sided distance of its result to the input (mm, capped
+  // at 2 max_error; see mesh/meshopt_decimation.h), negative when not measured, and the
+  // crossing pairs of its result.
+  double sampled_error = -1.0;
+  std::size_t crossing_pairs = 0;
+  double meshopt_ms = 0.0;   // meshopt_simplify, all passes
+  double check_ms = 0.0;     // meshopt's checks, all passes
+  double openmesh_ms = 0.0;  // OpenMesh's decimater (0 when it did not run)
 };
 
-// Decimates `mesh` in place; vertex normals of the result are recomputed (area-weighted).
+// Decimates `mesh` in place with options.decimator, falling back from meshopt to OpenMesh as
+// described above; vertex normals of the result are recomputed (area-weighted).
 // Preconditions: options as documented above; indices < positions.size().
 DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions& options = {});
+
+// OpenMesh's decimater alone (options.decimator is ignored).
+DecimationReport decimate_with_openmesh(core::TriangleMesh& mesh,
+                                        const DecimationOptions& options = {});
 
 }  // namespace typemerge::mesh
