@@ -10,7 +10,6 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
-#include <cstdlib>
 #include <limits>
 #include <optional>
 #include <span>
@@ -312,14 +311,13 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
     return report;
   }
 
-  // max_error in mm to meshopt's units: relative to the extent it rescales the mesh by. The
-  // quadric error is a mean, so the largest distance exceeds it here and there: those places
-  // are found by the checks and kept as they were in the next pass.
+  // max_error in mm to meshopt's units: relative to the extent it rescales the mesh by, times
+  // kErrorFactor since the quadric error is a mean and the largest distance exceeds it here
+  // and there; those places are found by the checks and kept as they were in the next pass.
   const bool bounded = std::isfinite(options.max_error);
   const double scale = meshopt_simplifyScale(mesh.positions.front().data(), mesh.positions.size(),
                                              sizeof(mesh.positions.front()));
-  const double factor = std::getenv("TM_FACTOR") ? std::atof(std::getenv("TM_FACTOR")) : 1.0;
-  const float relative = bounded ? static_cast<float>(factor * options.max_error / scale)
+  const float relative = bounded ? static_cast<float>(kErrorFactor * options.max_error / scale)
                                  : std::numeric_limits<float>::max();
   const double spacing = mean_edge_length(mesh);
   std::vector<std::uint8_t> locked(mesh.positions.size(), 0);
@@ -333,7 +331,6 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
 
     start = Clock::now();
     const Problems problems = find_problems(mesh, result, options, spacing, input_crossings);
-    std::fprintf(stderr, "find_problems %.0f ms\n", ms_since(start));
     if (bounded) report.sampled_error = problems.distance;
     report.crossing_pairs = problems.crossings;
     if (problems.any()) {
@@ -342,13 +339,11 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
         report.check_ms += ms_since(start);
         return refuse(found + " after " + std::to_string(pass) + " passes");
       }
-      // Around each problem, the input's triangles within a few of the result's edges (what
-      // collapsed into it), wider each pass.
-      const double radius = 2.0 * mean_edge_length(result);
+      // Around each problem, the input's triangles within a few of its edges, wider each pass.
+      const double radius = 2.0 * pass * spacing;
       const std::size_t newly =
           lock_around(mesh, result, problems, radius, options.threads, locked);
       report.check_ms += ms_since(start);
-      std::fprintf(stderr, "+lock %.0f ms\n", ms_since(start));
       if (newly == 0) return refuse(found + " (nothing more to keep)");
       report.meshopt_notes.push_back("pass " + std::to_string(pass) + ": " + found + "; " +
                                      std::to_string(newly) + " input vertices kept around them");
@@ -357,6 +352,9 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
     const core::MeshCheck check = core::check_mesh(result, options.threads);
     report.check_ms += ms_since(start);
     if (auto problem = topology_problem(check, input)) return refuse(*problem);
+    if (result.triangles.size() == mesh.triangles.size()) {
+      return refuse("nothing reduced: every triangle kept around the problems of the passes");
+    }
 
     for (const auto& t : mesh.triangles) {
       if (locked[t[0]] != 0 || locked[t[1]] != 0 || locked[t[2]] != 0) ++report.kept_triangles;
