@@ -272,6 +272,11 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
   command->add_option("--max-error", options.finish_options.max_error_mm,
                       "Error bound of that reduction in mm (default 0.1 when reducing)")
       ->check(CLI::NonNegativeNumber);
+  command->add_option("--decimator", options.finish_options.decimator,
+                      "Library of that reduction: openmesh (default; its bounds hold by "
+                      "construction) or meshopt (meshoptimizer, checked after, OpenMesh when a "
+                      "check fails)")
+      ->check(CLI::IsMember({"openmesh", "meshopt"}));
   command->add_option("--denoise", options.denoise, "Denoise first: none, gaussian, median, bilateral")
       ->check(CLI::IsMember({"none", "gaussian", "median", "bilateral"}));
   command->add_option("--voxel-size", options.voxel_size_mm,
@@ -467,6 +472,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                           {"smooth_iterations", pipeline.finish.smooth_iterations},
                           {"reduce_to", pipeline.finish.reduce_to_triangles},
                           {"max_error_mm", pipeline.finish.max_error_mm},
+                          {"decimator", pipeline.finish.decimator},
                           {"check_intersections", options.check_intersections},
                           {"hollow_mm", options.hollow_mm > 0 ? ordered_json(options.hollow_mm)
                                                               : ordered_json(nullptr)}};

@@ -226,11 +226,29 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
       mesh::DecimationOptions decimation;
       decimation.target_triangles = finish.reduce_to_triangles;
       if (finish.max_error_mm > 0) decimation.max_error = finish.max_error_mm;
+      decimation.decimator = finish.decimator == "meshopt" ? mesh::Decimator::meshopt
+                                                            : mesh::Decimator::openmesh;
+      decimation.threads = options.threads;
       const auto report = mesh::decimate_mesh(mesh, decimation);
       for (const auto& w : report.warnings) result.warnings.push_back("decimation: " + w);
-      return StepOutput{{{"triangles_before", std::to_string(report.triangles_before)},
-                         {"max_error_mm", number(report.max_error)},
-                         {"reached_target", report.reached_target ? "yes" : "no"}},
+      Details details{{"triangles_before", std::to_string(report.triangles_before)},
+                      {"max_error_mm", number(report.max_error)},
+                      {"reached_target", report.reached_target ? "yes" : "no"},
+                      {"decimator_asked", finish.decimator},
+                      {"decimator", mesh::to_string(report.decimator)}};
+      if (decimation.decimator == mesh::Decimator::meshopt) {
+        details.emplace_back("meshopt_passes", std::to_string(report.meshopt_passes));
+        details.emplace_back("meshopt_ms", number(report.meshopt_ms));
+        details.emplace_back("meshopt_check_ms", number(report.check_ms));
+        details.emplace_back("meshopt_kept_triangles", std::to_string(report.kept_triangles));
+        if (report.sampled_error >= 0) {
+          details.emplace_back("meshopt_sampled_error_mm", number(report.sampled_error));
+        }
+        for (const auto& note : report.meshopt_notes) details.emplace_back("meshopt_pass", note);
+        if (!report.fallback.empty()) details.emplace_back("fallback", report.fallback);
+      }
+      if (report.openmesh_ms > 0) details.emplace_back("openmesh_ms", number(report.openmesh_ms));
+      return StepOutput{std::move(details),
                         report.validity.check};
     });
   }

@@ -39,6 +39,7 @@ struct FinishOptions {
   int smooth_iterations = 0;                 // Taubin; 0 = off
   std::size_t reduce_to_triangles = 0;       // quadric decimation target; 0 = off
   double max_error_mm = 0.0;                 // decimation error bound; 0 = off
+  std::string decimator = "openmesh";        // openmesh | meshopt (mesh/decimation.h)
 };
 
 struct PipelineOptions {

@@ -1,6 +1,7 @@
 #include "mesh/decimation.h"
 
 #include <cassert>
+#include <chrono>
 #include <string>
 
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
@@ -9,15 +10,41 @@
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
 #include "mesh/detail/openmesh_conversion.h"
+#include "mesh/meshopt_decimation.h"
 
 namespace typemerge::mesh {
 
+const char* to_string(Decimator decimator) {
+  return decimator == Decimator::meshopt ? "meshopt" : "openmesh";
+}
+
 DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions& options) {
+  if (options.decimator == Decimator::openmesh) return decimate_with_openmesh(mesh, options);
+  DecimationReport tried = decimate_with_meshopt(mesh, options);
+  if (tried.fallback.empty()) return tried;
+  // `mesh` is the input still: meshoptimizer's refused result was not written into it.
+  DecimationReport report = decimate_with_openmesh(mesh, options);
+  report.fallback = tried.fallback;
+  report.meshopt_passes = tried.meshopt_passes;
+  report.meshopt_notes = tried.meshopt_notes;
+  report.sampled_error = tried.sampled_error;
+  report.crossing_pairs = tried.crossing_pairs;
+  report.meshopt_ms = tried.meshopt_ms;
+  report.check_ms = tried.check_ms;
+  report.warnings.insert(report.warnings.begin(),
+                         "meshoptimizer's result refused (" + tried.fallback +
+                             "); OpenMesh's decimater used instead");
+  return report;
+}
+
+DecimationReport decimate_with_openmesh(core::TriangleMesh& mesh, const DecimationOptions& options) {
   assert(options.max_error > 0.0);
   assert(options.max_normal_deviation > 0.0 && options.max_normal_deviation <= 180.0);
   using detail::OpenMeshTriMesh;
 
+  const auto start = std::chrono::steady_clock::now();
   DecimationReport report;
+  report.decimator = Decimator::openmesh;
   report.triangles_before = mesh.triangles.size();
   report.max_error = options.max_error;
 
@@ -69,6 +96,8 @@ DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions
   report.triangles_after = mesh.triangles.size();
   report.reached_target =
       options.target_triangles > 0 && report.triangles_after <= options.target_triangles + 1;
+  report.openmesh_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   report.validity = check_validity(mesh);
   return report;
 }

@@ -1,8 +1,21 @@
-// decimate_mesh: quadric-ordered edge collapses with OpenMesh's decimater (Garland & Heckbert
-// 1997 quadrics for the order; half-edge collapses, so every vertex of the result is a vertex
-// of the input), bounded by a Hausdorff tolerance so it is never blind.
+// decimate_mesh: bounded quadric decimation (Garland & Heckbert 1997 quadrics for the order;
+// half-edge collapses, so every vertex of the result is a vertex of the input) by one of two
+// libraries:
+//  * OpenMesh's decimater (the default; decimate_with_openmesh, below): its guarantees hold by
+//    construction (link condition, every input vertex within max_error, no fold-over).
+//  * meshoptimizer (--decimator meshopt; mesh/meshopt_decimation.h): its simplifier takes
+//    0.5 s where OpenMesh takes 28 s (abdomen bone, mc, 911 k triangles), but its bound is a
+//    mean quadric error and it has no link-condition test, so its result is checked after and
+//    repaired by passes that keep the input around each problem; when that does not converge
+//    the input goes to OpenMesh (`fallback` says why).
+// Why OpenMesh stays the default (tests/mesh/mesh_bench.cpp --stl, abdomen bone mc): at
+// max_error 0.1 mm meshoptimizer's first pass has 1793 triangles on non-manifold edges or
+// vertices, 7 zero-area triangles and 6018 sampled points beyond the bound; after 4 passes 10
+// zero-area triangles and 1 far point are left, so it falls back, and the checks cost
+// 1.3 - 2.5 s a pass: no faster than OpenMesh alone. At --reduce-to 100000 without a bound
+// its first pass has 16518 triangles on non-manifold edges or vertices.
 //
-// Modules, in OpenMesh's terms:
+// OpenMesh's modules, in its terms:
 //  * ModQuadricT (priority, no bound): collapses the edge of least area-weighted quadric
 //    error first;
 //  * ModHausdorffT (binary): a collapse is allowed only while every original vertex that
@@ -19,8 +32,8 @@
 // per fan before decimating (see detail/openmesh_conversion.h) and stay split.
 //
 // Speed: OpenMesh's decimater is a single-threaded heap over half-edge collapses, and the
-// Hausdorff module re-measures the points of every affected face per candidate. It is the
-// slow step of the pipeline on large CT surfaces (see tests/mesh/mesh_bench.cpp).
+// Hausdorff module re-measures the points of every affected face per candidate: about 28 s
+// for 911 k triangles of abdomen bone (tests/mesh/mesh_bench.cpp --stl prints both libraries).
 #pragma once
 
 #include <cstddef>
@@ -32,6 +45,9 @@
 
 namespace typemerge::mesh {
 
+enum class Decimator { meshopt, openmesh };
+const char* to_string(Decimator decimator);  // "meshopt", "openmesh"
+
 struct DecimationOptions {
   // Stop at this many triangles (0: decimate as far as the bounds allow). A closed mesh
   // loses two triangles per collapse, so the result may end one below an odd target.
@@ -39,8 +55,13 @@ struct DecimationOptions {
   // Hausdorff tolerance in mesh units (mm after to_patient); must be > 0. Pass
   // std::numeric_limits<double>::infinity() to decimate blindly on purpose.
   double max_error = 0.1;
-  // Largest normal turn of any face in one collapse, degrees, in (0, 180].
+  // Largest normal turn of any face in one collapse, degrees, in (0, 180] (OpenMesh only;
+  // meshoptimizer refuses any collapse that flips a face by more than 90°).
   double max_normal_deviation = 60.0;
+  // Which library to try first; meshopt falls back to openmesh when its result fails a check.
+  Decimator decimator = Decimator::openmesh;
+  // Threads for meshopt's checks (0: hardware concurrency); OpenMesh is single-threaded.
+  unsigned threads = 0;
 };
 
 struct DecimationReport {
@@ -52,10 +73,31 @@ struct DecimationReport {
   std::size_t rejected_triangles = 0;  // faces OpenMesh could not hold (then nothing done)
   std::vector<std::string> warnings;
   Validity validity;  // of the result
+
+  Decimator decimator = Decimator::openmesh;  // the library whose result this is
+  // Why meshoptimizer's result was refused, e.g. "3 non-manifold edges" or "sampled distance
+  // 0.31 mm > 0.2 mm"; empty when it was accepted or not tried.
+  std::string fallback;
+  int meshopt_passes = 0;  // meshopt_simplify runs (each pass keeps the last one's problems)
+  std::size_t kept_triangles = 0;          // input triangles meshopt kept around problems
+  std::vector<std::string> meshopt_notes;  // per pass that found problems: what, how many
+  // meshopt's checks: the sampled two-sided distance of its result to the input (mm, capped
+  // at 2 max_error; see mesh/meshopt_decimation.h), negative when not measured, and the
+  // crossing pairs of its result.
+  double sampled_error = -1.0;
+  std::size_t crossing_pairs = 0;
+  double meshopt_ms = 0.0;   // meshopt_simplify, all passes
+  double check_ms = 0.0;     // meshopt's checks, all passes
+  double openmesh_ms = 0.0;  // OpenMesh's decimater (0 when it did not run)
 };
 
-// Decimates `mesh` in place; vertex normals of the result are recomputed (area-weighted).
+// Decimates `mesh` in place with options.decimator, falling back from meshopt to OpenMesh as
+// described above; vertex normals of the result are recomputed (area-weighted).
 // Preconditions: options as documented above; indices < positions.size().
 DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions& options = {});
+
+// OpenMesh's decimater alone (options.decimator is ignored).
+DecimationReport decimate_with_openmesh(core::TriangleMesh& mesh,
+                                        const DecimationOptions& options = {});
 
 }  // namespace typemerge::mesh
