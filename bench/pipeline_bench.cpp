@@ -427,15 +427,16 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells,
       if (surface.keep_largest) {
         check = mesh::keep_largest_component(mesh, surface.fill_cavities ? mesh::Cavities::fill
                                                                          : mesh::Cavities::keep,
-                                             &check)
+                                             &check, settings.threads)
                     .validity.check;
       }
       if (surface.min_component_mm3 > 0) {
-        check = mesh::remove_small_components(mesh, surface.min_component_mm3, &check)
+        check = mesh::remove_small_components(mesh, surface.min_component_mm3, &check,
+                                              settings.threads)
                     .validity.check;
       }
       if (surface.fill_cavities && !surface.keep_largest) {
-        check = mesh::fill_cavities(mesh, &check).validity.check;
+        check = mesh::fill_cavities(mesh, &check, settings.threads).validity.check;
       }
       if (!check.closed_manifold()) mesh::check_validity(mesh);
     }));

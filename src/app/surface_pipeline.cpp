@@ -190,21 +190,22 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
     const auto cavities = fill ? mesh::Cavities::fill : mesh::Cavities::keep;
     run_step(result, fill ? "keep largest solid, cavities filled" : "keep largest solid",
              options.threads,
-             [&result, cavities](core::TriangleMesh& mesh) {
-               return component_details(
-                   mesh::keep_largest_component(mesh, cavities, &result.steps.back().check));
+             [&result, &options, cavities](core::TriangleMesh& mesh) {
+               return component_details(mesh::keep_largest_component(
+                   mesh, cavities, &result.steps.back().check, options.threads));
              });
   }
   if (min_volume > 0) {
     run_step(result, "remove components under " + number(min_volume) + " mm3", options.threads,
              [&](core::TriangleMesh& mesh) {
-               return component_details(
-                   mesh::remove_small_components(mesh, min_volume, &result.steps.back().check));
+               return component_details(mesh::remove_small_components(
+                   mesh, min_volume, &result.steps.back().check, options.threads));
              });
   }
   if (fill && !keep_largest) {
-    run_step(result, "fill cavities", options.threads, [&result](core::TriangleMesh& mesh) {
-      return component_details(mesh::fill_cavities(mesh, &result.steps.back().check));
+    run_step(result, "fill cavities", options.threads, [&result, &options](core::TriangleMesh& mesh) {
+      return component_details(
+          mesh::fill_cavities(mesh, &result.steps.back().check, options.threads));
     });
   }
   std::optional<std::size_t> crossings;  // of the surface as it stands, once counted

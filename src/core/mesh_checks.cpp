@@ -278,10 +278,10 @@ MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads) {
 }
 
 MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
-                                          std::size_t removed_components) {
+                                          std::size_t removed_components, unsigned threads) {
   assert(before.closed_manifold() && removed_components <= before.components);
   MeshCheck check;
-  measure_triangles(mesh, check, 1);
+  measure_triangles(mesh, check, detail::resolve_threads(threads));
   check.vertices = mesh.positions.size();
   check.edges = 3 * check.triangles / 2;
   check.components = before.components - removed_components;

@@ -52,7 +52,7 @@ MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads = 1);
 // full check (about a tenth of a one-thread bone conversion, perf). Precondition:
 // before.closed_manifold().
 MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
-                                          std::size_t removed_components);
+                                          std::size_t removed_components, unsigned threads = 1);
 
 namespace detail {
 // The same result by the simplest means (a global sort, a vector per vertex): the oracle of

@@ -12,6 +12,7 @@
 #include <numeric>
 #include <vector>
 
+#include "core/mesh_checks.h"
 #include "core/union_find.h"
 
 namespace typemerge::mesh {
@@ -97,7 +98,7 @@ Components label_components(const core::TriangleMesh& mesh) {
 // Removes the triangles whose component is marked in `remove`, then unused vertices.
 ComponentReport remove_components(core::TriangleMesh& mesh, const Components& c,
                                   const std::vector<bool>& remove,
-                                  const core::MeshCheck* checked) {
+                                  const core::MeshCheck* checked, unsigned threads) {
   ComponentReport report;
   report.components_before = c.count;
   for (std::size_t label = 0; label < c.count; ++label) {
@@ -122,12 +123,12 @@ ComponentReport remove_components(core::TriangleMesh& mesh, const Components& c,
                      checked->triangles == c.of_triangle.size() &&
                      checked->components == c.count;
   if (!known) {
-    report.validity = check_validity(mesh);
+    report.validity = {core::check_mesh(mesh, threads)};
   } else if (report.removed_components == 0) {
     report.validity = {*checked};
   } else {
     report.validity = {
-        core::check_after_removing_components(mesh, *checked, report.removed_components)};
+        core::check_after_removing_components(mesh, *checked, report.removed_components, threads)};
   }
   return report;
 }
@@ -296,7 +297,7 @@ class Containment {
 }  // namespace
 
 ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities cavities,
-                                       const core::MeshCheck* checked) {
+                                       const core::MeshCheck* checked, unsigned threads) {
   const Components c = label_components(mesh);
   // The largest solid: the outward shell enclosing the most volume. Cavity walls (negative
   // volume) compete only when there is no outward shell at all (an inside-out mesh).
@@ -314,9 +315,9 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities caviti
     }
   }
   std::vector<bool> remove(c.count, true);
-  if (c.count == 0) return remove_components(mesh, c, remove, checked);
+  if (c.count == 0) return remove_components(mesh, c, remove, checked, threads);
   remove[largest] = false;
-  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove, checked);
+  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove, checked, threads);
 
   // Its cavities stay: a cavity wall whose innermost enclosing outward shell is the largest.
   // (A cavity of an island floating inside one of its cavities belongs to the island.)
@@ -331,21 +332,22 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities caviti
     }
     remove[cavity] = nearer_container;
   }
-  return remove_components(mesh, c, remove, checked);
+  return remove_components(mesh, c, remove, checked, threads);
 }
 
 ComponentReport remove_small_components(core::TriangleMesh& mesh, double min_volume,
-                                        const core::MeshCheck* checked) {
+                                        const core::MeshCheck* checked, unsigned threads) {
   assert(min_volume >= 0.0);
   const Components c = label_components(mesh);
   std::vector<bool> remove(c.count);
   for (std::size_t label = 0; label < c.count; ++label) {
     remove[label] = std::abs(c.volume[label]) < min_volume;
   }
-  return remove_components(mesh, c, remove, checked);
+  return remove_components(mesh, c, remove, checked, threads);
 }
 
-ComponentReport fill_cavities(core::TriangleMesh& mesh, const core::MeshCheck* checked) {
+ComponentReport fill_cavities(core::TriangleMesh& mesh, const core::MeshCheck* checked,
+                              unsigned threads) {
   const Components c = label_components(mesh);
   std::vector<bool> remove(c.count);
   for (std::size_t label = 0; label < c.count; ++label) remove[label] = c.volume[label] < 0.0;
@@ -360,7 +362,7 @@ ComponentReport fill_cavities(core::TriangleMesh& mesh, const core::MeshCheck* c
       }
     }
   }
-  return remove_components(mesh, c, remove, checked);
+  return remove_components(mesh, c, remove, checked, threads);
 }
 
 }  // namespace typemerge::mesh

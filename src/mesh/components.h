@@ -32,7 +32,8 @@ enum class Cavities { keep, fill };
 
 // Each function below takes, optionally, check_mesh of `mesh` as it is given (`checked`):
 // when that says closed and manifold, the result's validity is derived from it
-// (core::check_after_removing_components) instead of checking the result again.
+// (core::check_after_removing_components) instead of checking the result again. `threads`
+// (0: all cores) share that check; the result does not depend on it.
 
 // Keeps the largest solid: the outward shell enclosing the most volume (ties: more triangles,
 // then the first) with the walls of its own cavities, and removes every other component —
@@ -42,13 +43,15 @@ enum class Cavities { keep, fill };
 // its component of largest |signed volume|.
 ComponentReport keep_largest_component(core::TriangleMesh& mesh,
                                        Cavities cavities = Cavities::keep,
-                                       const core::MeshCheck* checked = nullptr);
+                                       const core::MeshCheck* checked = nullptr,
+                                       unsigned threads = 1);
 
 // Removes every component whose |signed volume| is < min_volume (mesh units³, mm³ after
 // to_patient). Cavities count by their size too: a cavity smaller than min_volume is filled.
 // Precondition: min_volume >= 0.
 ComponentReport remove_small_components(core::TriangleMesh& mesh, double min_volume,
-                                        const core::MeshCheck* checked = nullptr);
+                                        const core::MeshCheck* checked = nullptr,
+                                        unsigned threads = 1);
 
 // Makes a hollow surface solid, so a skin becomes one shell. The rule:
 //  * a component with negative signed volume is a cavity wall (the extractor winds outward
@@ -59,6 +62,6 @@ ComponentReport remove_small_components(core::TriangleMesh& mesh, double min_vol
 //    removed as well, since once the cavity is filled it is buried in solid.
 // Outermost solids are kept whatever their size.
 ComponentReport fill_cavities(core::TriangleMesh& mesh,
-                              const core::MeshCheck* checked = nullptr);
+                              const core::MeshCheck* checked = nullptr, unsigned threads = 1);
 
 }  // namespace typemerge::mesh
