@@ -443,8 +443,9 @@ class Slurm : public ::testing::Test {
   void SetUp() override {
     if (problem_.empty()) return;
     if (startup_failed_ || under_ci()) FAIL() << "Slurm: " << problem_;
-    GTEST_SKIP() << "Slurm cannot start here (" << problem_
-                 << "); scripts/install_deps.sh installs slurm-wlm and munge";
+    GTEST_SKIP() << "Slurm cannot start here: " << problem_
+                 << (::geteuid() == 0 ? " (scripts/install_deps.sh installs slurm-wlm and munge)"
+                                      : " (run the test as root)");
   }
 
   // Runs a README line in `work` (job logs land there), typemerge on PATH, 1G a job.
