@@ -380,7 +380,7 @@ class SlurmCluster {
          << "AuthInfo=socket=" << socket.string() << "\n"
          << "ProctrackType=proctrack/linuxproc\nTaskPlugin=task/none\n"
          << "SelectType=select/cons_tres\nSelectTypeParameters=CR_CPU_Memory\n"
-         << "SchedulerType=sched/builtin\nSchedulerParameters=sched_min_interval=100000\n"
+         << "SchedulerType=sched/builtin\nSchedulerParameters=sched_min_interval=100000,batch_sched_delay=0\n"
          << "MpiDefault=none\nReturnToService=2\n"
          << "AccountingStorageType=accounting_storage/none\n"
          << "JobAcctGatherType=jobacct_gather/none\nJobCompType=jobcomp/none\n"
