@@ -22,6 +22,8 @@ packages=(
   clang libclang-rt-14-dev  # fuzz/: Clang 14 and its libFuzzer + sanitizer runtimes
   locales tzdata          # determinism tests: a comma-decimal locale (localedef), time zones
   time                    # pipeline_bench: peak RSS of convert as its own process (/usr/bin/time)
+  parallel                # cluster_parallel: the README's GNU parallel lines, run as written
+  slurm-wlm munge         # cluster_slurm: scripts/slurm on a single-node Slurm the test starts
 )
 
 missing=()
