@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "app/batch_folders.h"
+#include "app/batch_outputs.h"
 #include "app/batch_plan.h"
 #include "app/cli_runner.h"
 #include "app/study_tree.h"
@@ -24,9 +25,12 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 using typemerge::app::folder_id_of;
+using typemerge::test::comparable;
 using typemerge::test::fresh_dir;
+using typemerge::test::outputs_of;
 using typemerge::test::read_file_bytes;
 using typemerge::test::run_cli;
+using typemerge::test::summary_of;
 namespace ct_writer = typemerge::ct_writer;
 
 const fs::path& tree() {
@@ -36,33 +40,6 @@ const fs::path& tree() {
     return dir;
   }();
   return root;
-}
-
-// Every file under `out` except the summaries and the manifest, with its bytes.
-std::map<std::string, std::string> outputs_of(const fs::path& out) {
-  std::map<std::string, std::string> files;
-  for (const auto& entry : fs::recursive_directory_iterator(out)) {
-    const std::string relative = entry.path().lexically_relative(out).generic_string();
-    if (!entry.is_regular_file() || relative.rfind(".typemerge", 0) == 0 ||
-        relative.rfind("summary", 0) == 0) {
-      continue;
-    }
-    files[relative] = read_file_bytes(entry.path());
-  }
-  return files;
-}
-
-json summary_of(const fs::path& file) { return json::parse(read_file_bytes(file)); }
-
-// The summary's results without what differs between runs (timings, memory).
-json comparable(json results) {
-  for (auto& r : results) {
-    r.erase("seconds");
-    r.erase("cpu_seconds");
-    r.erase("peak_memory_mb");
-    if (r["status"] == "up_to_date") r["status"] = "converted";
-  }
-  return results;
 }
 
 const json* result_for(const json& summary, const std::string& input_prefix) {

@@ -36,6 +36,7 @@
 #include <thread>
 #include <vector>
 
+#include "app/batch_outputs.h"
 #include "app/batch_plan.h"
 #include "app/study_tree.h"
 #include "support/scratch_files.h"
@@ -44,8 +45,10 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using typemerge::test::comparable;
 using typemerge::test::fresh_dir;
 using typemerge::test::read_file_bytes;
+using typemerge::test::summary_of;
 using Clock = std::chrono::steady_clock;
 
 constexpr int kShards = 3;  // the README's 16 would be 16 tasks for the same 6 studies
@@ -146,31 +149,9 @@ const fs::path& tree() {
 }
 const char* const kBigStudy = "siteF/studyF/s1";
 
-json summary_of(const fs::path& file) { return json::parse(read_file_bytes(file)); }
-
-// The summary's results without what differs between runs (timings, memory).
-json comparable(json results) {
-  for (auto& r : results) {
-    r.erase("seconds");
-    r.erase("cpu_seconds");
-    r.erase("peak_memory_mb");
-    if (r["status"] == "up_to_date") r["status"] = "converted";
-  }
-  return results;
-}
-
-// Every file under `out` except the summaries and the manifest, with its bytes.
+// Outputs as the batch tests compare them, less the Slurm jobs' logs (typemerge-merge-%j.out).
 std::map<std::string, std::string> outputs_of(const fs::path& out) {
-  std::map<std::string, std::string> files;
-  for (const auto& entry : fs::recursive_directory_iterator(out)) {
-    const std::string relative = entry.path().lexically_relative(out).generic_string();
-    if (!entry.is_regular_file() || relative.rfind(".typemerge", 0) == 0 ||
-        relative.rfind("summary", 0) == 0 || relative.rfind("typemerge-", 0) == 0) {
-      continue;
-    }
-    files[relative] = read_file_bytes(entry.path());
-  }
-  return files;
+  return typemerge::test::outputs_of(out, {"typemerge-"});
 }
 
 // One unsharded batch of the tree, the reference every recipe must reproduce.
