@@ -238,14 +238,14 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
                       {"decimator_asked", finish.decimator},
                       {"decimator", mesh::to_string(report.decimator)}};
       if (decimation.decimator == mesh::Decimator::meshopt) {
-        details.emplace_back("meshopt_passes", std::to_string(report.meshopt_passes));
-        details.emplace_back("meshopt_ms", number(report.meshopt_ms));
-        details.emplace_back("meshopt_check_ms", number(report.check_ms));
-        details.emplace_back("meshopt_kept_triangles", std::to_string(report.kept_triangles));
-        if (report.sampled_error >= 0) {
-          details.emplace_back("meshopt_sampled_error_mm", number(report.sampled_error));
+        details.emplace_back("meshopt_passes", std::to_string(report.meshopt.passes));
+        details.emplace_back("meshopt_ms", number(report.meshopt.simplify_ms));
+        details.emplace_back("meshopt_check_ms", number(report.meshopt.check_ms));
+        details.emplace_back("meshopt_kept_triangles", std::to_string(report.meshopt.kept_triangles));
+        if (report.meshopt.sampled_error >= 0) {
+          details.emplace_back("meshopt_sampled_error_mm", number(report.meshopt.sampled_error));
         }
-        for (const auto& note : report.meshopt_notes) details.emplace_back("meshopt_pass", note);
+        for (const auto& note : report.meshopt.notes) details.emplace_back("meshopt_pass", note);
         if (!report.fallback.empty()) details.emplace_back("fallback", report.fallback);
       }
       if (report.openmesh_ms > 0) details.emplace_back("openmesh_ms", number(report.openmesh_ms));

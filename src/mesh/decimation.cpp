@@ -3,6 +3,7 @@
 #include <cassert>
 #include <chrono>
 #include <string>
+#include <utility>
 
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModHausdorffT.hh>
@@ -25,12 +26,7 @@ DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions
   // `mesh` is the input still: meshoptimizer's refused result was not written into it.
   DecimationReport report = decimate_with_openmesh(mesh, options);
   report.fallback = tried.fallback;
-  report.meshopt_passes = tried.meshopt_passes;
-  report.meshopt_notes = tried.meshopt_notes;
-  report.sampled_error = tried.sampled_error;
-  report.crossing_pairs = tried.crossing_pairs;
-  report.meshopt_ms = tried.meshopt_ms;
-  report.check_ms = tried.check_ms;
+  report.meshopt = std::move(tried.meshopt);
   report.warnings.insert(report.warnings.begin(),
                          "meshoptimizer's result refused (" + tried.fallback +
                              "); OpenMesh's decimater used instead");

@@ -64,6 +64,20 @@ struct DecimationOptions {
   unsigned threads = 0;
 };
 
+// What the meshoptimizer path did (all zero when it was not tried).
+struct MeshoptAttempt {
+  int passes = 0;  // meshopt_simplify runs (each pass keeps the last one's problems)
+  std::size_t kept_triangles = 0;  // input triangles meshopt kept around problems
+  std::vector<std::string> notes;  // per pass that found problems: what, how many
+  // Its checks: the sampled two-sided distance of its result to the input (mm, capped at
+  // 2 max_error; see mesh/meshopt_decimation.h), negative when not measured, and the crossing
+  // pairs of its result.
+  double sampled_error = -1.0;
+  std::size_t crossing_pairs = 0;
+  double simplify_ms = 0.0;  // meshopt_simplify, all passes
+  double check_ms = 0.0;     // its checks, all passes
+};
+
 struct DecimationReport {
   std::size_t triangles_before = 0;
   std::size_t triangles_after = 0;
@@ -78,16 +92,7 @@ struct DecimationReport {
   // Why meshoptimizer's result was refused, e.g. "3 non-manifold edges" or "sampled distance
   // 0.31 mm > 0.2 mm"; empty when it was accepted or not tried.
   std::string fallback;
-  int meshopt_passes = 0;  // meshopt_simplify runs (each pass keeps the last one's problems)
-  std::size_t kept_triangles = 0;          // input triangles meshopt kept around problems
-  std::vector<std::string> meshopt_notes;  // per pass that found problems: what, how many
-  // meshopt's checks: the sampled two-sided distance of its result to the input (mm, capped
-  // at 2 max_error; see mesh/meshopt_decimation.h), negative when not measured, and the
-  // crossing pairs of its result.
-  double sampled_error = -1.0;
-  std::size_t crossing_pairs = 0;
-  double meshopt_ms = 0.0;   // meshopt_simplify, all passes
-  double check_ms = 0.0;     // meshopt's checks, all passes
+  MeshoptAttempt meshopt;  // what meshoptimizer did, also when its result was refused
   double openmesh_ms = 0.0;  // OpenMesh's decimater (0 when it did not run)
 };
 

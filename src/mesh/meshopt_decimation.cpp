@@ -297,7 +297,7 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
 
   auto start = Clock::now();
   const core::MeshCheck input = core::check_mesh(mesh, options.threads);
-  report.check_ms += ms_since(start);
+  report.meshopt.check_ms += ms_since(start);
   if (!input.closed_manifold()) {
     std::string text;
     for (const auto& line : Validity{input}.problems()) text += (text.empty() ? "" : ", ") + line;
@@ -324,40 +324,40 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
   std::optional<std::size_t> input_crossings;  // counted only when a result has any
 
   for (int pass = 1; pass <= kMaxMeshoptPasses; ++pass) {
-    report.meshopt_passes = pass;
+    report.meshopt.passes = pass;
     start = Clock::now();
     core::TriangleMesh result = simplify_once(mesh, locked, options.target_triangles, relative);
-    report.meshopt_ms += ms_since(start);
+    report.meshopt.simplify_ms += ms_since(start);
 
     start = Clock::now();
     const Problems problems = find_problems(mesh, result, options, spacing, input_crossings);
-    if (bounded) report.sampled_error = problems.distance;
-    report.crossing_pairs = problems.crossings;
+    if (bounded) report.meshopt.sampled_error = problems.distance;
+    report.meshopt.crossing_pairs = problems.crossings;
     if (problems.any()) {
       const std::string found = problems.describe();
       if (pass == kMaxMeshoptPasses) {
-        report.check_ms += ms_since(start);
+        report.meshopt.check_ms += ms_since(start);
         return refuse(found + " after " + std::to_string(pass) + " passes");
       }
       // Around each problem, the input's triangles within a few of its edges, wider each pass.
       const double radius = 2.0 * pass * spacing;
       const std::size_t newly =
           lock_around(mesh, result, problems, radius, options.threads, locked);
-      report.check_ms += ms_since(start);
+      report.meshopt.check_ms += ms_since(start);
       if (newly == 0) return refuse(found + " (nothing more to keep)");
-      report.meshopt_notes.push_back("pass " + std::to_string(pass) + ": " + found + "; " +
+      report.meshopt.notes.push_back("pass " + std::to_string(pass) + ": " + found + "; " +
                                      std::to_string(newly) + " input vertices kept around them");
       continue;
     }
     const core::MeshCheck check = core::check_mesh(result, options.threads);
-    report.check_ms += ms_since(start);
+    report.meshopt.check_ms += ms_since(start);
     if (auto problem = topology_problem(check, input)) return refuse(*problem);
     if (result.triangles.size() == mesh.triangles.size()) {
       return refuse("nothing reduced: every triangle kept around the problems of the passes");
     }
 
     for (const auto& t : mesh.triangles) {
-      if (locked[t[0]] != 0 || locked[t[1]] != 0 || locked[t[2]] != 0) ++report.kept_triangles;
+      if (locked[t[0]] != 0 || locked[t[1]] != 0 || locked[t[2]] != 0) ++report.meshopt.kept_triangles;
     }
     compute_vertex_normals(result);
     mesh = std::move(result);

@@ -98,13 +98,13 @@ int compare_decimators(int argc, char** argv) {
                 "mean %.4f mm; closed manifold %d, χ %lld, %zu components, %zu crossing pairs; "
                 "result of %s%s%s\n",
                 mesh::to_string(decimator), report.triangles_before, report.triangles_after,
-                seconds, report.meshopt_ms / 1000, report.meshopt_passes, report.check_ms / 1000,
+                seconds, report.meshopt.simplify_ms / 1000, report.meshopt.passes, report.meshopt.check_ms / 1000,
                 report.openmesh_ms / 1000, distance.hausdorff(), distance.a_to_b.max,
                 distance.b_to_a.max, distance.mean(), report.validity.valid(),
                 static_cast<long long>(report.validity.check.euler_characteristic),
                 report.validity.check.components, crossings, mesh::to_string(report.decimator),
                 report.fallback.empty() ? "" : ", fell back: ", report.fallback.c_str());
-    for (const auto& note : report.meshopt_notes) std::printf("  %s\n", note.c_str());
+    for (const auto& note : report.meshopt.notes) std::printf("  %s\n", note.c_str());
     std::fflush(stdout);
   }
   return 0;
