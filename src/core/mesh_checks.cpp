@@ -1,5 +1,6 @@
 // check_mesh: triangle corners bucketed by vertex (counting sort, O(n)), each vertex's link
-// examined on its own for the vertex and its edges; components by union-find. detail::check_mesh_by_sorting is the
+// examined on its own for the vertex and its edges; components by union-find.
+// detail::check_mesh_by_sorting is the
 // first, simplest version (one global sort of the half-edges, a vector per vertex): it stays as
 // the oracle the fast one is tested against. The fast one exists because the pipeline checks
 // the mesh after every finishing step: on 600 k triangles the sorting version took 0.35 s.
@@ -195,9 +196,9 @@ constexpr std::size_t kVertexChunk = std::size_t{1} << 15;
 // vertex's link (the edge opposite it in each of its triangles) answers both questions: is the
 // vertex manifold, and how are its edges used (count_edges_of_link). It replaced a version with
 // a second bucketing of the half-edges and copies of the triangles: on 1.1 M triangles the
-// pipeline_bench check stage fell from 202 to 89-126 ms (2 threads) and its transient from 72
-// to 17 MiB, which lowered convert's peak. The buckets hold corner
-// numbers (3 t + k), 4 bytes each, not the link pairs, which are read from the triangles.
+// pipeline_bench check stage fell from 202 to 76-126 ms (2 threads) and its transient from 72
+// to 17 MiB, which lowered convert's peak. The buckets hold corner numbers (3 t + k), 4 bytes
+// each, not the link pairs, which are read from the triangles.
 MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads) {
   MeshCheck check;
   const std::size_t n = mesh.positions.size();
@@ -238,7 +239,9 @@ MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads) {
   for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
     const auto& t = mesh.triangles[i];
     if (has_repeated_index(t)) continue;
-    for (std::uint32_t k = 0; k < 3; ++k) corners[start[t[k]]++] = static_cast<std::uint32_t>(3 * i) + k;
+    for (std::uint32_t k = 0; k < 3; ++k) {
+      corners[start[t[k]]++] = static_cast<std::uint32_t>(3 * i) + k;
+    }
   }
   for (std::size_t v = n; v > 0; --v) start[v] = start[v - 1];
   start[0] = 0;

@@ -123,7 +123,7 @@ ComponentReport remove_components(core::TriangleMesh& mesh, const Components& c,
                      checked->triangles == c.of_triangle.size() &&
                      checked->components == c.count;
   if (!known) {
-    report.validity = {core::check_mesh(mesh, threads)};
+    report.validity = check_validity(mesh, threads);
   } else if (report.removed_components == 0) {
     report.validity = {*checked};
   } else {
@@ -317,7 +317,9 @@ ComponentReport keep_largest_component(core::TriangleMesh& mesh, Cavities caviti
   std::vector<bool> remove(c.count, true);
   if (c.count == 0) return remove_components(mesh, c, remove, checked, threads);
   remove[largest] = false;
-  if (!any_outward || cavities == Cavities::fill) return remove_components(mesh, c, remove, checked, threads);
+  if (!any_outward || cavities == Cavities::fill) {
+    return remove_components(mesh, c, remove, checked, threads);
+  }
 
   // Its cavities stay: a cavity wall whose innermost enclosing outward shell is the largest.
   // (A cavity of an island floating inside one of its cavities belongs to the island.)

@@ -55,7 +55,9 @@ std::vector<std::string> Validity::problems() const {
   return lines;
 }
 
-Validity check_validity(const core::TriangleMesh& mesh) { return {core::check_mesh(mesh)}; }
+Validity check_validity(const core::TriangleMesh& mesh, unsigned threads) {
+  return {core::check_mesh(mesh, threads)};
+}
 
 std::size_t remove_unreferenced_vertices(core::TriangleMesh& mesh) {
   const std::size_t n = mesh.positions.size();

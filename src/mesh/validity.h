@@ -34,7 +34,8 @@ struct Validity {
   std::vector<std::string> problems() const;
 };
 
-Validity check_validity(const core::TriangleMesh& mesh);
+// `threads` as for core::check_mesh (the result does not depend on it).
+Validity check_validity(const core::TriangleMesh& mesh, unsigned threads = 1);
 
 struct RepairReport {
   std::size_t removed_repeated_index_triangles = 0;  // present in the input
