@@ -842,6 +842,7 @@ class PieceMerger {
     mm_.clear();
     for (VertexId v : loop) mm_.push_back(in_mm(mesh_.positions[v]));
     ears_.clear();
+    ear_shape_.clear();
     prev_.resize(n);
     succ_.resize(n);
     score_.resize(n);
@@ -868,6 +869,7 @@ class PieceMerger {
       const std::uint32_t a = prev_[best];
       const std::uint32_t c = succ_[best];
       ears_.push_back({a, best, c});
+      ear_shape_.push_back(best_score);  // shape(a, best, c): its score with these neighbours
       if (left == 3) break;
       succ_[a] = c;
       prev_[c] = a;
@@ -888,12 +890,8 @@ class PieceMerger {
   void flip_for_shape() {
     const std::size_t count = ears_.size();
     if (count < 2) return;
-    // Each triangle's shape, kept as flips change them (shape is the same for any rotation
-    // of a triangle's corners: the same three cosines).
-    ear_shape_.resize(count);
-    for (std::size_t t = 0; t < count; ++t) {
-      ear_shape_[t] = shape(ears_[t][0], ears_[t][1], ears_[t][2]);
-    }
+    // ear_shape_ holds each triangle's shape (from clipping), kept as flips change them:
+    // shape is the same for any rotation of a triangle's corners (the same three cosines).
     // The triangle across each edge (ears_[t][k], ears_[t][k + 1]), by a quadratic search
     // (a few to a few dozen triangles).
     for (int round = 0; round < 4; ++round) {
@@ -988,7 +986,7 @@ class PieceMerger {
   std::vector<std::uint8_t> flat_masks_;
   std::vector<P3> mm_;             // the loop in patient millimetres, for shape()
   std::vector<std::array<double, 4>> edge_boxes_;  // flat_is_simple's scratch
-  std::vector<double> ear_shape_;  // shape() of each triangle in ears_ (flip_for_shape)
+  std::vector<double> ear_shape_;  // shape() of each triangle in ears_
   std::vector<std::uint32_t> prev_;
   std::vector<std::uint32_t> succ_;
   std::vector<double> score_;
