@@ -65,6 +65,72 @@ using VertexId = std::uint32_t;
 
 constexpr float kPadding = -std::numeric_limits<float>::infinity();
 
+bool is_sample(const Volume& volume, const std::array<Index, 3>& p) {
+  const VolumeSize& s = volume.size();
+  return p[0] >= 0 && p[0] < s.nx && p[1] >= 0 && p[1] < s.ny && p[2] >= 0 && p[2] < s.nz;
+}
+
+// Central differences inside the volume, one-sided at its border (per index step). Samples
+// with both neighbours along every axis read them directly (the same arithmetic): the
+// clamped lookups were most of a vertex's cost.
+std::array<double, 3> gradient(const Volume& volume, const std::array<Index, 3>& p) {
+  const std::array<Index, 3> n = {volume.size().nx, volume.size().ny, volume.size().nz};
+  if (p[0] > 0 && p[0] + 1 < n[0] && p[1] > 0 && p[1] + 1 < n[1] && p[2] > 0 && p[2] + 1 < n[2]) {
+    const float* c = volume.slice(p[2]) + p[1] * n[0] + p[0];
+    const Index row = n[0];
+    const Index slice = n[0] * n[1];
+    return {(double{c[1]} - c[-1]) / 2.0, (double{c[row]} - c[-row]) / 2.0,
+            (double{c[slice]} - c[-slice]) / 2.0};
+  }
+  std::array<double, 3> g{0, 0, 0};
+  for (int a = 0; a < 3; ++a) {
+    std::array<Index, 3> lo = p;
+    std::array<Index, 3> hi = p;
+    lo[a] = std::max<Index>(p[a] - 1, 0);
+    hi[a] = std::min<Index>(p[a] + 1, n[a] - 1);
+    if (hi[a] == lo[a]) continue;
+    g[a] = (double{volume.at(hi[0], hi[1], hi[2])} - volume.at(lo[0], lo[1], lo[2])) /
+           static_cast<double>(hi[a] - lo[a]);
+  }
+  return g;
+}
+
+// Fraction of the way from the inside end to the outside end of a cut edge whose values are
+// `in` (>= iso) and `out` (< iso); in [0, 1) since out < iso <= in, and 0 when out is the −∞
+// padding. The margin keeps the vertex off both samples (the tie rule: a sample equal to iso
+// is inside, its vertices sit just outside).
+double edge_fraction(float in, float out, float iso) {
+  const double t = (double{iso} - in) / (double{out} - in);
+  return std::clamp(t, double{kEdgeMargin}, 1.0 - double{kEdgeMargin});
+}
+
+// The unit normal of the vertex at fraction t from the inside end p_in of a cut lattice edge
+// (p_out its outside end, one step along `axis`): outward = toward lower values =
+// −gradient; on a cap (the outside end is padding) the border normal, which is also the
+// fallback where the gradient vanishes.
+std::array<float, 3> edge_normal(const Volume& volume, const std::array<Index, 3>& p_in,
+                                 const std::array<Index, 3>& p_out, int axis, double t) {
+  std::array<double, 3> normal{0, 0, 0};
+  if (is_sample(volume, p_out)) {
+    const std::array<double, 3> g_in = gradient(volume, p_in);
+    const std::array<double, 3> g_out = gradient(volume, p_out);
+    for (int a = 0; a < 3; ++a) normal[a] = -((1.0 - t) * g_in[a] + t * g_out[a]);
+  }
+  double length = std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
+  if (!(length > 0.0)) {
+    normal = {0, 0, 0};
+    normal[axis] = p_out[axis] > p_in[axis] ? 1.0 : -1.0;
+    length = 1.0;
+  }
+  return {static_cast<float>(normal[0] / length), static_cast<float>(normal[1] / length),
+          static_cast<float>(normal[2] / length)};
+}
+
+// A deferred vertex's lattice edge (detail::SurfacePiece::vertex_edges): its lower end in
+// the padded grid, linearly, times 4, plus its axis; a loop's centre vertex is 4k + 3, k its
+// index in centroid_normals.
+constexpr std::uint64_t kCentroidEdge = 3;
+
 // Ambiguous faces per cube code (a table: without -mpopcnt, std::popcount is a library call).
 constexpr std::array<std::uint8_t, 256> kAmbiguousFaceCount = [] {
   std::array<std::uint8_t, 256> count{};
@@ -184,8 +250,9 @@ enum EdgeArray : int { kLowerX, kLowerY, kUpperX, kUpperY, kBetweenZ };
 
 class Extractor {
  public:
-  Extractor(const Volume& volume, float iso, const ExtractOptions& options)
-      : volume_(volume), iso_(iso), options_(options) {
+  Extractor(const Volume& volume, float iso, const ExtractOptions& options,
+            bool defer_normals = false)
+      : volume_(volume), iso_(iso), options_(options), defer_normals_(defer_normals) {
     pad_ = options.close_borders ? 1 : 0;
     const VolumeSize& s = volume.size();
     width_ = s.nx + 2 * pad_;
@@ -243,6 +310,8 @@ class Extractor {
   }
 
   TriangleMesh& mesh() { return mesh_; }
+  std::vector<std::uint64_t>& vertex_edges() { return vertex_edges_; }
+  std::vector<std::array<float, 3>>& centroid_normals() { return centroid_normals_; }
   const AmbiguityStats& stats() const { return stats_; }
   std::vector<BoundaryCube>& cubes() { return cubes_; }
   std::size_t shared_vertices() const { return shared_vertices_; }
@@ -305,7 +374,11 @@ class Extractor {
       }
     };
     reserve(mesh_.positions, vertices);
-    reserve(mesh_.normals, vertices);
+    if (defer_normals_) {
+      reserve(vertex_edges_, vertices);
+    } else {
+      reserve(mesh_.normals, vertices);
+    }
     reserve(mesh_.triangles, 2.0 * vertices);
     if (options_.cubes != nullptr) reserve(cubes_, vertices);
   }
@@ -522,44 +595,24 @@ class Extractor {
   // values are `lo` there and `hi` at the other end (exactly one of them inside).
   VertexId add_edge_vertex(Index x, Index y, Index z, int axis, float lo, float hi) {
     const bool lo_inside = lo >= iso_;
-    const float in = lo_inside ? lo : hi;
-    const float out = lo_inside ? hi : lo;
-    // Fraction of the way from the inside end to the outside end; in [0, 1) since
-    // out < iso <= in, and 0 when out is the −∞ padding. The margin keeps the vertex off both
-    // samples (the tie rule: a sample equal to iso is inside, its vertices sit just outside).
-    double t = (double{iso_} - in) / (double{out} - in);
-    t = std::clamp(t, double{kEdgeMargin}, 1.0 - double{kEdgeMargin});
+    const double t = edge_fraction(lo_inside ? lo : hi, lo_inside ? hi : lo, iso_);
     const double s = lo_inside ? t : 1.0 - t;  // from the lower end
 
     std::array<Index, 3> p_lo = {x - pad_, y - pad_, z - pad_};
-    std::array<Index, 3> p_hi = p_lo;
-    ++p_hi[axis];
     std::array<float, 3> position = {static_cast<float>(p_lo[0]), static_cast<float>(p_lo[1]),
                                      static_cast<float>(p_lo[2])};
     position[axis] = static_cast<float>(static_cast<double>(p_lo[axis]) + s);
-
-    // Outward = toward lower values = −gradient; on a cap (the outside end is padding) the
-    // border normal, which is also the fallback where the gradient vanishes.
-    const std::array<Index, 3>& p_in = lo_inside ? p_lo : p_hi;
-    const std::array<Index, 3>& p_out = lo_inside ? p_hi : p_lo;
-    std::array<double, 3> normal{0, 0, 0};
-    if (is_sample(p_out)) {
-      const std::array<double, 3> g_in = gradient(p_in);
-      const std::array<double, 3> g_out = gradient(p_out);
-      for (int a = 0; a < 3; ++a) normal[a] = -((1.0 - t) * g_in[a] + t * g_out[a]);
-    }
-    double length =
-        std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
-    if (!(length > 0.0)) {
-      normal = {0, 0, 0};
-      normal[axis] = lo_inside ? 1.0 : -1.0;
-      length = 1.0;
-    }
-
     mesh_.positions.push_back(position);
-    mesh_.normals.push_back({static_cast<float>(normal[0] / length),
-                             static_cast<float>(normal[1] / length),
-                             static_cast<float>(normal[2] / length)});
+    if (defer_normals_) {
+      vertex_edges_.push_back(
+          4 * static_cast<std::uint64_t>(x + width_ * (y + height_ * z)) +
+          static_cast<std::uint64_t>(axis));
+    } else {
+      std::array<Index, 3> p_hi = p_lo;
+      ++p_hi[axis];
+      mesh_.normals.push_back(lo_inside ? edge_normal(volume_, p_lo, p_hi, axis, t)
+                                        : edge_normal(volume_, p_hi, p_lo, axis, t));
+    }
     assert(mesh_.positions.size() <= std::numeric_limits<VertexId>::max());
     return static_cast<VertexId>(mesh_.positions.size() - 1);
   }
@@ -572,9 +625,13 @@ class Extractor {
     int count = 0;
     for (unsigned rest = edges; rest != 0; rest &= rest - 1, ++count) {
       const VertexId v = local[std::countr_zero(rest)];
+      const std::array<float, 3> vertex_normal =
+          defer_normals_ ? detail::deferred_vertex_normal(volume_, iso_, options_.close_borders,
+                                                          vertex_edges_[v], centroid_normals_)
+                         : mesh_.normals[v];
       for (int a = 0; a < 3; ++a) {
         position[a] += mesh_.positions[v][a];
-        normal[a] += mesh_.normals[v][a];
+        normal[a] += vertex_normal[a];
       }
     }
     const double length =
@@ -583,36 +640,25 @@ class Extractor {
     mesh_.positions.push_back({static_cast<float>(position[0] / count),
                                static_cast<float>(position[1] / count),
                                static_cast<float>(position[2] / count)});
-    mesh_.normals.push_back({static_cast<float>(normal[0] * scale),
-                             static_cast<float>(normal[1] * scale),
-                             static_cast<float>(normal[2] * scale)});
-    return static_cast<VertexId>(mesh_.positions.size() - 1);
-  }
-
-  bool is_sample(const std::array<Index, 3>& p) const {
-    const VolumeSize& s = volume_.size();
-    return p[0] >= 0 && p[0] < s.nx && p[1] >= 0 && p[1] < s.ny && p[2] >= 0 && p[2] < s.nz;
-  }
-
-  // Central differences inside the volume, one-sided at its border (per index step).
-  std::array<double, 3> gradient(const std::array<Index, 3>& p) const {
-    const std::array<Index, 3> n = {volume_.size().nx, volume_.size().ny, volume_.size().nz};
-    std::array<double, 3> g{0, 0, 0};
-    for (int a = 0; a < 3; ++a) {
-      std::array<Index, 3> lo = p;
-      std::array<Index, 3> hi = p;
-      lo[a] = std::max<Index>(p[a] - 1, 0);
-      hi[a] = std::min<Index>(p[a] + 1, n[a] - 1);
-      if (hi[a] == lo[a]) continue;
-      g[a] = (double{volume_.at(hi[0], hi[1], hi[2])} - volume_.at(lo[0], lo[1], lo[2])) /
-             static_cast<double>(hi[a] - lo[a]);
+    const std::array<float, 3> centre_normal = {static_cast<float>(normal[0] * scale),
+                                                static_cast<float>(normal[1] * scale),
+                                                static_cast<float>(normal[2] * scale)};
+    if (defer_normals_) {
+      vertex_edges_.push_back(4 * centroid_normals_.size() + kCentroidEdge);
+      centroid_normals_.push_back(centre_normal);
+    } else {
+      mesh_.normals.push_back(centre_normal);
     }
-    return g;
+    return static_cast<VertexId>(mesh_.positions.size() - 1);
   }
 
   const Volume& volume_;
   float iso_;
   ExtractOptions options_;
+  // detail::extract_layers(..., defer_normals): each vertex's edge instead of its normal.
+  bool defer_normals_ = false;
+  std::vector<std::uint64_t> vertex_edges_;
+  std::vector<std::array<float, 3>> centroid_normals_;
   Index pad_ = 0;
   Index width_ = 0;   // padded samples along x
   Index height_ = 0;  // padded samples along y
@@ -715,8 +761,29 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
   return Extractor(volume, iso, options).layers();
 }
 
+std::array<float, 3> deferred_vertex_normal(
+    const Volume& volume, float iso, bool close_borders, std::uint64_t edge,
+    const std::vector<std::array<float, 3>>& centroid_normals) {
+  const auto axis = static_cast<int>(edge % 4);
+  if (axis == static_cast<int>(kCentroidEdge)) return centroid_normals[edge / 4];
+  const Index pad = close_borders ? 1 : 0;
+  const Index width = volume.size().nx + 2 * pad;
+  const Index height = volume.size().ny + 2 * pad;
+  const auto cell = static_cast<Index>(edge / 4);
+  std::array<Index, 3> p_lo = {cell % width - pad, cell / width % height - pad,
+                               cell / width / height - pad};
+  std::array<Index, 3> p_hi = p_lo;
+  ++p_hi[axis];
+  const float lo = is_sample(volume, p_lo) ? volume.at(p_lo[0], p_lo[1], p_lo[2]) : kPadding;
+  const float hi = is_sample(volume, p_hi) ? volume.at(p_hi[0], p_hi[1], p_hi[2]) : kPadding;
+  const bool lo_inside = lo >= iso;
+  const double t = edge_fraction(lo_inside ? lo : hi, lo_inside ? hi : lo, iso);
+  return lo_inside ? edge_normal(volume, p_lo, p_hi, axis, t)
+                   : edge_normal(volume, p_hi, p_lo, axis, t);
+}
+
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
-                            std::int64_t first, std::int64_t last) {
+                            std::int64_t first, std::int64_t last, bool defer_normals) {
   assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
   // The extractor records cubes, and counts ambiguities, when these are set; it keeps both
   // itself (the piece takes them), so the targets stay empty.
@@ -725,10 +792,12 @@ SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOption
   ExtractOptions with_cubes = options;
   with_cubes.cubes = &unused_cubes;
   if (options.stats != nullptr) with_cubes.stats = &unused_stats;
-  Extractor extractor(volume, iso, with_cubes);
+  Extractor extractor(volume, iso, with_cubes, defer_normals);
   extractor.run(first, last);
   SurfacePiece piece;
   piece.mesh = std::move(extractor.mesh());
+  piece.vertex_edges = std::move(extractor.vertex_edges());
+  piece.centroid_normals = std::move(extractor.centroid_normals());
   piece.cubes = std::move(extractor.cubes());
   piece.stats = extractor.stats();
   piece.shared_vertices = extractor.shared_vertices();

@@ -118,8 +118,12 @@ bool face_joins_inside(float a, float b, float c, float d, float iso);
 // a piece holds exactly those). A piece is open where it is cut (mesh boundary along the
 // seam); stitching pieces by those vertices gives extract_isosurface's surface.
 struct SurfacePiece {
-  TriangleMesh mesh;
+  TriangleMesh mesh;  // without normals when extracted with defer_normals
   std::vector<BoundaryCube> cubes;  // its boundary cubes, triangles indexed in `mesh`
+  // With defer_normals: each vertex's lattice edge (or centre-vertex number), for
+  // deferred_vertex_normal, and the centre vertices' normals.
+  std::vector<std::uint64_t> vertex_edges;
+  std::vector<std::array<float, 3>> centroid_normals;
   AmbiguityStats stats;
   std::size_t shared_vertices = 0;
   std::size_t top_first = 0;  // the vertices of slice `last`: [top_first, top_end)
@@ -131,10 +135,18 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 
 // Extracts one piece with its cube records (and its ambiguity counts when options.stats is
 // set; the piece holds them, *options.stats is not touched), on the calling thread
-// (options.threads and .cubes are ignored).
+// (options.threads and .cubes are ignored). defer_normals: the mesh gets no normals but
+// vertex_edges, so that a caller who keeps few of the vertices (type merging keeps 20–55 %)
+// computes only theirs, with deferred_vertex_normal, equal to extract_isosurface's.
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
-                            std::int64_t first, std::int64_t last);
+                            std::int64_t first, std::int64_t last, bool defer_normals = false);
+
+// The normal extract_isosurface gives the vertex whose SurfacePiece::vertex_edges entry is
+// `edge` (close_borders as the piece was extracted with).
+std::array<float, 3> deferred_vertex_normal(
+    const Volume& volume, float iso, bool close_borders, std::uint64_t edge,
+    const std::vector<std::array<float, 3>>& centroid_normals);
 
 }  // namespace detail
 

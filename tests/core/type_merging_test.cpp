@@ -86,11 +86,21 @@ void expect_same_topology(const Extracted& e) {
   EXPECT_EQ(e.stats.triangles_after, e.tm.triangles.size());
   EXPECT_EQ(e.stats.vertices_before, e.mc.positions.size());
   EXPECT_EQ(e.stats.vertices_after, e.tm.positions.size());
-  // Every output vertex is a marching-cubes vertex, unmoved.
-  std::vector<std::array<float, 3>> mc_positions = e.mc.positions;
-  std::sort(mc_positions.begin(), mc_positions.end());
-  for (const auto& p : e.tm.positions) {
-    ASSERT_TRUE(std::binary_search(mc_positions.begin(), mc_positions.end(), p));
+  // Every output vertex is a marching-cubes vertex, unmoved, with its normal (type merging
+  // computes the normals of the vertices it keeps only, after the merge).
+  ASSERT_EQ(e.mc.normals.size(), e.mc.positions.size());
+  ASSERT_EQ(e.tm.normals.size(), e.tm.positions.size());
+  std::vector<std::pair<std::array<float, 3>, std::array<float, 3>>> mc_vertices;
+  for (std::size_t v = 0; v < e.mc.positions.size(); ++v) {
+    mc_vertices.emplace_back(e.mc.positions[v], e.mc.normals[v]);
+  }
+  std::sort(mc_vertices.begin(), mc_vertices.end());
+  for (std::size_t v = 0; v < e.tm.positions.size(); ++v) {
+    const auto found = std::lower_bound(
+        mc_vertices.begin(), mc_vertices.end(), e.tm.positions[v],
+        [](const auto& vertex, const std::array<float, 3>& p) { return vertex.first < p; });
+    ASSERT_TRUE(found != mc_vertices.end() && found->first == e.tm.positions[v]);
+    ASSERT_EQ(found->second, e.tm.normals[v]);
   }
   // No two triangles cross (exact predicates), as in marching cubes (whose own tests check
   // it).
