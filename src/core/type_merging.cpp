@@ -1121,10 +1121,25 @@ class PieceMerger {
     // its index (0: none); kept up to date through the flips. The quadratic search it
     // replaced was a quarter of the triangulation's time (perf, abdomen 300 HU); the flips
     // made are the same.
+    // A flip's decision on edge (a, b) depends on a, b and the two apexes alone, so an edge
+    // rejected with the same apexes (rejected_[a·n + b] = the loop's stamp and c, d) is not
+    // tried again: the last round, which flips nothing, and the second look at each edge
+    // (from its other triangle) mostly cost nothing. The flips were the same on every real
+    // series (only orient2d from the other triangle could round differently).
     const std::size_t n = flat_.size();
-    if (edge_owner_.size() < n * n) edge_owner_.assign(n * n, 0);
+    if (edge_owner_.size() < n * n) {
+      edge_owner_.assign(n * n, 0);
+      rejected_.assign(n * n, {0, 0, 0});
+    }
+    if (++flip_stamp_ == 0) {
+      std::fill(rejected_.begin(), rejected_.end(), std::array<std::uint32_t, 3>{0, 0, 0});
+      flip_stamp_ = 1;
+    }
     auto owner = [&](std::uint32_t x, std::uint32_t y) -> std::uint32_t& {
       return edge_owner_[static_cast<std::size_t>(x) * n + y];
+    };
+    auto rejected = [&](std::uint32_t x, std::uint32_t y) -> std::array<std::uint32_t, 3>& {
+      return rejected_[static_cast<std::size_t>(x) * n + y];
     };
     for (std::size_t t = 0; t < count; ++t) {
       for (int k = 0; k < 3; ++k) {
@@ -1146,16 +1161,24 @@ class PieceMerger {
             if (ears_[u][j] == b) d = ears_[u][(j + 2) % 3];
           }
           if ((flat_masks_[c] & flat_masks_[d]) != 0) continue;
+          if (rejected(a, b) == std::array<std::uint32_t, 3>{flip_stamp_, c, d}) continue;
           // Quad a, d, b, c (counter-clockwise): the new triangles (a, d, c) and (d, b, c).
-          if (!(orient2d(flat_[a], flat_[d], flat_[c]) > kMinDoubleArea) ||
-              !(orient2d(flat_[d], flat_[b], flat_[c]) > kMinDoubleArea)) {
+          bool flip = orient2d(flat_[a], flat_[d], flat_[c]) > kMinDoubleArea &&
+                      orient2d(flat_[d], flat_[b], flat_[c]) > kMinDoubleArea;
+          double shape_t = 0.0;
+          double shape_u = 0.0;
+          if (flip) {
+            const double before = std::min(ear_shape_[t], ear_shape_[u]);
+            shape_t = shape(a, d, c);
+            shape_u = shape(d, b, c);
+            const double after = std::min(shape_t, shape_u);
+            flip = after > before * (1.0 + 1e-9) + 1e-12;
+          }
+          if (!flip) {
+            rejected(a, b) = {flip_stamp_, c, d};
+            rejected(b, a) = {flip_stamp_, d, c};
             continue;
           }
-          const double before = std::min(ear_shape_[t], ear_shape_[u]);
-          const double shape_t = shape(a, d, c);
-          const double shape_u = shape(d, b, c);
-          const double after = std::min(shape_t, shape_u);
-          if (!(after > before * (1.0 + 1e-9) + 1e-12)) continue;
           ears_[t] = {a, d, c};
           ears_[u] = {d, b, c};
           ear_shape_[t] = shape_t;
@@ -1240,6 +1263,8 @@ class PieceMerger {
   std::vector<std::array<double, 4>> edge_boxes_;  // flat_is_simple's scratch
   std::vector<double> ear_shape_;  // shape() of each triangle in ears_
   std::vector<std::uint32_t> edge_owner_;  // flip_for_shape's edge table, zero between loops
+  std::vector<std::array<std::uint32_t, 3>> rejected_;  // and its rejected flips
+  std::uint32_t flip_stamp_ = 0;
   std::vector<std::uint32_t> prev_;
   std::vector<std::uint32_t> succ_;
   std::vector<double> score_;
