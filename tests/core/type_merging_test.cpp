@@ -434,6 +434,30 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   EXPECT_TRUE(detail::piece_bounds(volume, 0.0f, kClosed, options, 0, 1).empty());
 }
 
+// A body cut by both ends of the volume (a column through every slice) is closed by two caps,
+// each a layer of flat surface as large as its cross-section: the estimate sees them, so the
+// first and last pieces are shorter than the others (counting x-edges alone, every layer
+// looked the same and the pieces had equal heights).
+TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
+  const Volume volume = test::sample_volume(40, 40, 160, [](double x, double y, double) {
+    return x >= 2 && x <= 37 && y >= 2 && y <= 37 ? 1.0 : -1.0;
+  });
+  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
+  MergeOptions options;
+  options.slab_layers = 32;
+  const std::vector<std::int64_t> bounds =
+      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 2);
+  ASSERT_EQ(bounds.size() - 1, 5u);
+  const std::int64_t first = bounds[1] - bounds[0];
+  const std::int64_t last = bounds[5] - bounds[4];
+  EXPECT_LT(first, 32);
+  EXPECT_LT(last, 32);
+  for (std::size_t k = 1; k + 2 < bounds.size(); ++k) {
+    EXPECT_GT(bounds[k + 1] - bounds[k], first) << k;
+    EXPECT_GT(bounds[k + 1] - bounds[k], last) << k;
+  }
+}
+
 // Open borders across seams: boundaries stay exactly as marching cubes leaves them (the same
 // boundary edges; their vertices lie on block faces, so they stay).
 TEST(TypeMerging, PiecesKeepOpenBorders) {
