@@ -959,19 +959,37 @@ class PieceMerger {
     }
   }
 
+  // Whether every edge of the projected loop turns counter-clockwise about the mean of its
+  // vertices, c, and the loop goes round c once: then each ray from c meets the loop once,
+  // so it is simple and counter-clockwise. A test in one pass that most loops of CT pass
+  // (the pair test below, for the others, was 6–9 % of a conversion).
+  bool star_shaped_from_centroid() const {
+    const std::size_t n = flat_.size();
+    std::array<double, 2> c{0, 0};
+    for (const auto& p : flat_) {
+      c[0] += p[0];
+      c[1] += p[1];
+    }
+    c[0] /= static_cast<double>(n);
+    c[1] /= static_cast<double>(n);
+    std::size_t crossings = 0;  // edges crossing the horizontal line through c upward
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& a = flat_[i];
+      const auto& b = flat_[i + 1 == n ? 0 : i + 1];
+      if (!(orient2d(c, a, b) > 0.0)) return false;
+      // Counter-clockwise about c, an upward edge crosses that line right of c: the ray's
+      // crossings are the loop's winding number about c.
+      if (a[1] < c[1] && b[1] >= c[1]) ++crossings;
+    }
+    return crossings == 1;
+  }
+
   // Counter-clockwise, and no two edges of the projected loop meet except consecutive ones
   // at their shared corner.
   bool flat_is_simple() {
     const std::size_t n = flat_.size();
     if (n < 3) return false;
-    // Each edge's bounding box once (xmin, xmax, ymin, ymax), for the quadratic pair test.
-    edge_boxes_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto& a = flat_[i];
-      const auto& b = flat_[(i + 1) % n];
-      edge_boxes_[i] = {std::min(a[0], b[0]), std::max(a[0], b[0]), std::min(a[1], b[1]),
-                        std::max(a[1], b[1])};
-    }
+    if (star_shaped_from_centroid()) return true;
     double area = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
       const auto& a = flat_[i];
@@ -979,30 +997,38 @@ class PieceMerger {
       area += a[0] * b[1] - a[1] * b[0];
     }
     if (!(area > 0.0)) return false;
+    // Consecutive edges fold back onto each other only if collinear and reversed.
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& other = flat_[i];
+      const auto& corner = flat_[(i + 1) % n];
+      const auto& far = flat_[(i + 2) % n];
+      if (orient2d(other, corner, far) == 0.0 &&
+          (far[0] - corner[0]) * (other[0] - corner[0]) +
+                  (far[1] - corner[1]) * (other[1] - corner[1]) >
+              0.0) {
+        return false;
+      }
+    }
+    // Every other pair, by their bounding boxes (xmin, xmax, ymin, ymax) first.
+    edge_boxes_.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       const auto& a = flat_[i];
       const auto& b = flat_[(i + 1) % n];
-      for (std::size_t j = i + 1; j < n; ++j) {
-        const auto& c = flat_[j];
-        const auto& d = flat_[(j + 1) % n];
-        const bool after = j == i + 1;
-        const bool before = (j + 1) % n == i;
-        if (after || before) {
-          // Consecutive edges fold back onto each other only if collinear and reversed.
-          const auto& far = after ? d : c;
-          const auto& corner = after ? b : a;
-          const auto& other = after ? a : b;
-          if (orient2d(other, corner, far) == 0.0 &&
-              (far[0] - corner[0]) * (other[0] - corner[0]) +
-                      (far[1] - corner[1]) * (other[1] - corner[1]) >
-                  0.0) {
-            return false;
-          }
-          continue;
-        }
-        const auto& p = edge_boxes_[i];
+      edge_boxes_[i] = {std::min(a[0], b[0]), std::max(a[0], b[0]), std::min(a[1], b[1]),
+                        std::max(a[1], b[1])};
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto& p = edge_boxes_[i];
+      const std::size_t i_end = i + 1 == n ? 0 : i + 1;
+      // j from i + 2: (i, i + 1) is consecutive, and so is (n − 1, 0).
+      for (std::size_t j = i + 2; j < n; ++j) {
+        if (i == 0 && j == n - 1) continue;
         const auto& q = edge_boxes_[j];
         if (p[1] < q[0] || q[1] < p[0] || p[3] < q[2] || q[3] < p[2]) continue;
+        const auto& a = flat_[i];
+        const auto& b = flat_[i_end];
+        const auto& c = flat_[j];
+        const auto& d = flat_[j + 1 == n ? 0 : j + 1];
         // Closed segments meet (collinear overlap included, conservatively).
         if (orient2d(a, b, c) * orient2d(a, b, d) <= 0.0 &&
             orient2d(c, d, a) * orient2d(c, d, b) <= 0.0) {
@@ -1261,6 +1287,7 @@ class PieceMerger {
   std::vector<std::uint8_t> flat_masks_;
   std::vector<P3> mm_;             // the loop in patient millimetres, for shape()
   std::vector<std::array<double, 4>> edge_boxes_;  // flat_is_simple's scratch
+
   std::vector<double> ear_shape_;  // shape() of each triangle in ears_
   std::vector<std::uint32_t> edge_owner_;  // flip_for_shape's edge table, zero between loops
   std::vector<std::array<std::uint32_t, 3>> rejected_;  // and its rejected flips
