@@ -300,12 +300,13 @@ class PieceMerger {
     masks_.clear();
     next_.clear();
     parent_.clear();
+    const FaceTest faces(box);
     auto local_of = [&](VertexId v) {
       if (stamp_[v] != visit_) {
         stamp_[v] = visit_;
         local_[v] = static_cast<std::uint32_t>(vertices_.size());
         vertices_.push_back(v);
-        masks_.push_back(static_cast<std::uint8_t>(face_mask(mesh_.positions[v], box)));
+        masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
         next_.push_back(kNone);
         parent_.push_back(local_[v]);
       }
@@ -501,13 +502,23 @@ class PieceMerger {
 
   // Face bits of a position on the box: bit 2a (low face) and 2a + 1 (high face) of axis a.
   static unsigned face_mask(const std::array<float, 3>& p, const Box& box) {
-    unsigned mask = 0;
-    for (int a = 0; a < 3; ++a) {
-      if (p[a] == static_cast<float>(box.lo[a])) mask |= 1u << (2 * a);
-      if (p[a] == static_cast<float>(box.hi[a])) mask |= 2u << (2 * a);
-    }
-    return mask;
+    return FaceTest(box).mask(p);
   }
+  // The same with the box's planes converted once (for the many vertices of one box).
+  struct FaceTest {
+    std::array<float, 3> lo;
+    std::array<float, 3> hi;
+    explicit FaceTest(const Box& box) {
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = static_cast<float>(box.lo[a]);
+        hi[a] = static_cast<float>(box.hi[a]);
+      }
+    }
+    unsigned mask(const std::array<float, 3>& p) const {
+      return (p[0] == lo[0] ? 1u : 0u) | (p[0] == hi[0] ? 2u : 0u) | (p[1] == lo[1] ? 4u : 0u) |
+             (p[1] == hi[1] ? 8u : 0u) | (p[2] == lo[2] ? 16u : 0u) | (p[2] == hi[2] ? 32u : 0u);
+    }
+  };
 
   // The marching-cubes triangles of the block form components (through shared vertices);
   // each that passes the tests is recorded as a merged disk, provided it is separated from
@@ -526,6 +537,7 @@ class PieceMerger {
       }
       return false;
     };
+    const FaceTest faces(box);
     // The block-local vertex table, by stamps (no clearing per block).
     if (++visit_ == 0) {
       std::fill(stamp_.begin(), stamp_.end(), 0);
@@ -549,7 +561,7 @@ class PieceMerger {
             stamp_[v] = visit_;
             local_[v] = static_cast<std::uint32_t>(vertices_.size());
             vertices_.push_back(v);
-            masks_.push_back(static_cast<std::uint8_t>(face_mask(mesh_.positions[v], box)));
+            masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
             next_.push_back(kNone);
             parent_.push_back(local_[v]);
           }
@@ -952,10 +964,11 @@ class PieceMerger {
     const P3 w = cross(n, u);
     flat_.clear();
     flat_masks_.clear();
+    const FaceTest faces(box);
     for (VertexId v : loop) {
       const P3 p = to_double(mesh_.positions[v]);
       flat_.push_back({dot(p, u), dot(p, w)});
-      flat_masks_.push_back(static_cast<std::uint8_t>(face_mask(mesh_.positions[v], box)));
+      flat_masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
     }
   }
 
