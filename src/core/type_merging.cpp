@@ -55,6 +55,23 @@ struct Box {
   std::array<std::int32_t, 3> hi;
 };
 
+// Face bits of positions on a box: bit 2a (low face) and 2a + 1 (high face) of axis a, with
+// the box's planes converted to float once (for the many vertices of one box).
+struct FaceTest {
+  std::array<float, 3> lo;
+  std::array<float, 3> hi;
+  explicit FaceTest(const Box& box) {
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = static_cast<float>(box.lo[a]);
+      hi[a] = static_cast<float>(box.hi[a]);
+    }
+  }
+  unsigned mask(const std::array<float, 3>& p) const {
+    return (p[0] == lo[0] ? 1u : 0u) | (p[0] == hi[0] ? 2u : 0u) | (p[1] == lo[1] ? 4u : 0u) |
+           (p[1] == hi[1] ? 8u : 0u) | (p[2] == lo[2] ? 16u : 0u) | (p[2] == hi[2] ? 32u : 0u);
+  }
+};
+
 // Twice the signed area of the 2D triangle (a, b, c); > 0 when counter-clockwise.
 double orient2d(const std::array<double, 2>& a, const std::array<double, 2>& b,
                 const std::array<double, 2>& c) {
@@ -121,6 +138,7 @@ class PieceMerger {
 
  private:
   enum VertexState : std::uint8_t { kOpen = 0, kRemoved = 1, kKept = 2 };
+  struct Component;  // a component of a box's surface and its tests (defined below)
 
   std::span<const Triangle> triangles_of(std::uint32_t cube) const {
     const std::size_t first = cubes_[cube].first_triangle;
@@ -292,26 +310,9 @@ class PieceMerger {
   // are try_merge's. Records the block's disks in composed_* and returns true when every
   // component passes; nothing is recorded otherwise.
   bool try_compose(const Box& box, std::int32_t size, std::size_t first_part) {
-    if (++visit_ == 0) {
-      std::fill(stamp_.begin(), stamp_.end(), 0);
-      visit_ = 1;
-    }
-    vertices_.clear();
-    masks_.clear();
-    next_.clear();
-    parent_.clear();
+    start_local_table();
     const FaceTest faces(box);
-    auto local_of = [&](VertexId v) {
-      if (stamp_[v] != visit_) {
-        stamp_[v] = visit_;
-        local_[v] = static_cast<std::uint32_t>(vertices_.size());
-        vertices_.push_back(v);
-        masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
-        next_.push_back(kNone);
-        parent_.push_back(local_[v]);
-      }
-      return local_[v];
-    };
+    auto local_of = [&](VertexId v) { return local_vertex(v, faces); };
     const auto parts = static_cast<std::uint32_t>(disks_.size() - first_part);
     part_component_.resize(parts);
     std::size_t inner_half_edges = 0;
@@ -336,24 +337,7 @@ class PieceMerger {
         next_[a] = b;
       }
     }
-    // Components, numbered in order of their first loop vertex.
-    components_.clear();
-    component_of_.resize(vertices_.size());
-    for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
-      const std::uint32_t root = find(v);
-      if (root == v) {
-        component_of_[v] = static_cast<std::uint32_t>(components_.size());
-        components_.emplace_back();
-      } else {
-        component_of_[v] = component_of_[root];
-      }
-      Component& c = components_[component_of_[v]];
-      ++c.vertices;
-      if (next_[v] != kNone) {
-        ++c.loop_edges;
-        c.loop_start = v;
-      }
-    }
+    number_components();  // in order of their first loop vertex
     // Per component: its parts (F), inner half-edges (2 per inner edge), area.
     for (std::uint32_t p = 0; p < parts; ++p) {
       const MergedDisk& part = disks_[first_part + p];
@@ -437,14 +421,7 @@ class PieceMerger {
     }
     composed_loops_.clear();
     for (Component& c : components_) {
-      c.loop_first = static_cast<std::uint32_t>(composed_loops_.size());
-      std::uint32_t v = c.loop_start;
-      do {
-        composed_loops_.push_back(vertices_[v]);
-        v = next_[v];
-      } while (v != c.loop_start);
-      project(std::span(composed_loops_).subspan(c.loop_first), box, c.normal);
-      if (!flat_is_simple()) {
+      if (!append_simple_loop(c, box, composed_loops_)) {
         ++stats_.rejected_outline;
         return false;
       }
@@ -455,10 +432,7 @@ class PieceMerger {
     composed_triangles_.clear();
     composed_areas_.clear();
     composed_vertices_.clear();
-    if (++visit_ == 0) {
-      std::fill(stamp_.begin(), stamp_.end(), 0);
-      visit_ = 1;
-    }
+    next_visit();
     for (std::uint32_t i = 0; i < components_.size(); ++i) {
       const Component& c = components_[i];
       MergedDisk disk;
@@ -493,6 +467,71 @@ class PieceMerger {
     return true;
   }
 
+  // A new stamp for the piece's vertices (stamp_ is cleared only when the stamps wrap).
+  void next_visit() {
+    if (++visit_ == 0) {
+      std::fill(stamp_.begin(), stamp_.end(), 0);
+      visit_ = 1;
+    }
+  }
+
+  // Empties the block-local vertex table (vertices_, masks_, next_, parent_; local_ by stamp).
+  void start_local_table() {
+    next_visit();
+    vertices_.clear();
+    masks_.clear();
+    next_.clear();
+    parent_.clear();
+  }
+
+  // Vertex v's block-local index, adding it (with its face bits on the box) when new.
+  std::uint32_t local_vertex(VertexId v, const FaceTest& faces) {
+    if (stamp_[v] != visit_) {
+      stamp_[v] = visit_;
+      local_[v] = static_cast<std::uint32_t>(vertices_.size());
+      vertices_.push_back(v);
+      masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
+      next_.push_back(kNone);
+      parent_.push_back(local_[v]);
+    }
+    return local_[v];
+  }
+
+  // The components of the block-local vertices (union-find in parent_), numbered in order of
+  // their first vertex, with their vertex and loop-edge counts and a loop vertex each.
+  void number_components() {
+    components_.clear();
+    component_of_.resize(vertices_.size());
+    for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
+      const std::uint32_t root = find(v);
+      if (root == v) {
+        component_of_[v] = static_cast<std::uint32_t>(components_.size());
+        components_.emplace_back();
+      } else {
+        component_of_[v] = component_of_[root];
+      }
+      Component& c = components_[component_of_[v]];
+      ++c.vertices;
+      if (next_[v] != kNone) {
+        ++c.loop_edges;
+        c.loop_start = v;
+      }
+  }
+  }
+
+  // Appends c's loop (from c.loop_start along next_) to `loops` at c.loop_first and returns
+  // whether it is simple projected along c's normal.
+  bool append_simple_loop(Component& c, const Box& box, std::vector<VertexId>& loops) {
+    c.loop_first = static_cast<std::uint32_t>(loops.size());
+    std::uint32_t v = c.loop_start;
+    do {
+      loops.push_back(vertices_[v]);
+      v = next_[v];
+    } while (v != c.loop_start);
+    project(std::span(loops).subspan(c.loop_first), box, c.normal);
+    return flat_is_simple();
+  }
+
   // Whether the loop edges (next_) from `start` close into one cycle of all `edges` of them.
   bool loop_closes(std::uint32_t start, std::size_t edges) const {
     std::size_t steps = 0;
@@ -504,25 +543,10 @@ class PieceMerger {
     return v == start && steps == edges;
   }
 
-  // Face bits of a position on the box: bit 2a (low face) and 2a + 1 (high face) of axis a.
+  // Face bits of a position on the box (FaceTest).
   static unsigned face_mask(const std::array<float, 3>& p, const Box& box) {
     return FaceTest(box).mask(p);
   }
-  // The same with the box's planes converted once (for the many vertices of one box).
-  struct FaceTest {
-    std::array<float, 3> lo;
-    std::array<float, 3> hi;
-    explicit FaceTest(const Box& box) {
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = static_cast<float>(box.lo[a]);
-        hi[a] = static_cast<float>(box.hi[a]);
-      }
-    }
-    unsigned mask(const std::array<float, 3>& p) const {
-      return (p[0] == lo[0] ? 1u : 0u) | (p[0] == hi[0] ? 2u : 0u) | (p[1] == lo[1] ? 4u : 0u) |
-             (p[1] == hi[1] ? 8u : 0u) | (p[2] == lo[2] ? 16u : 0u) | (p[2] == hi[2] ? 32u : 0u);
-    }
-  };
 
   // The marching-cubes triangles of the block form components (through shared vertices);
   // each that passes the tests is recorded as a merged disk, provided it is separated from
@@ -542,15 +566,7 @@ class PieceMerger {
       return false;
     };
     const FaceTest faces(box);
-    // The block-local vertex table, by stamps (no clearing per block).
-    if (++visit_ == 0) {
-      std::fill(stamp_.begin(), stamp_.end(), 0);
-      visit_ = 1;
-    }
-    vertices_.clear();
-    masks_.clear();
-    next_.clear();
-    parent_.clear();
+    start_local_table();
     local_triangles_.clear();
     for (std::uint32_t cube : cubes) {
       const std::size_t first = cubes_[cube].first_triangle;
@@ -560,16 +576,7 @@ class PieceMerger {
         LocalTriangle local;
         local.id = static_cast<std::uint32_t>(first + i);
         for (int k = 0; k < 3; ++k) {
-          const VertexId v = t[k];
-          if (stamp_[v] != visit_) {
-            stamp_[v] = visit_;
-            local_[v] = static_cast<std::uint32_t>(vertices_.size());
-            vertices_.push_back(v);
-            masks_.push_back(static_cast<std::uint8_t>(faces.mask(mesh_.positions[v])));
-            next_.push_back(kNone);
-            parent_.push_back(local_[v]);
-          }
-          local.corner[k] = local_[v];
+          local.corner[k] = local_vertex(t[k], faces);
         }
         for (int k = 0; k < 3; ++k) {
           const std::uint32_t a = local.corner[k];
@@ -587,24 +594,7 @@ class PieceMerger {
         local_triangles_.push_back(local);
       }
     }
-    // Components, numbered in order of their first vertex.
-    components_.clear();
-    component_of_.resize(vertices_.size());
-    for (std::uint32_t v = 0; v < vertices_.size(); ++v) {
-      const std::uint32_t root = find(v);
-      if (root == v) {
-        component_of_[v] = static_cast<std::uint32_t>(components_.size());
-        components_.emplace_back();
-      } else {
-        component_of_[v] = component_of_[root];
-      }
-      Component& c = components_[component_of_[v]];
-      ++c.vertices;
-      if (next_[v] != kNone) {
-        ++c.loop_edges;
-        c.loop_start = v;
-      }
-    }
+    number_components();
     for (const LocalTriangle& t : local_triangles_) {
       Component& c = components_[component_of_[t.corner[0]]];
       ++c.faces;
@@ -685,14 +675,7 @@ class PieceMerger {
         all = false;
         continue;
       }
-      c.loop_first = static_cast<std::uint32_t>(loop_.size());
-      std::uint32_t v = c.loop_start;
-      do {
-        loop_.push_back(vertices_[v]);
-        v = next_[v];
-      } while (v != c.loop_start);
-      project(std::span(loop_).subspan(c.loop_first), box, c.normal);
-      if (!flat_is_simple()) {
+      if (!append_simple_loop(c, box, loop_)) {
         c.ok = false;
         all = false;
         ++stats_.rejected_outline;
