@@ -315,7 +315,6 @@ class PieceMerger {
     auto local_of = [&](VertexId v) { return local_vertex(v, faces); };
     const auto parts = static_cast<std::uint32_t>(disks_.size() - first_part);
     part_component_.resize(parts);
-    std::size_t inner_half_edges = 0;
     for (std::uint32_t p = 0; p < parts; ++p) {
       const MergedDisk& part = disks_[first_part + p];
       const std::uint32_t* loop = loops_.data() + part.loop_first;
@@ -325,10 +324,7 @@ class PieceMerger {
         const std::uint32_t b = local_of(loop[k]);
         previous = b;
         unite(a, b);
-        if ((masks_[a] & masks_[b]) == 0) {
-          ++inner_half_edges;
-          continue;
-        }
+        if ((masks_[a] & masks_[b]) == 0) continue;  // on a face two parts share
         // On the block's loop; two leaving one vertex: pinched, no disk.
         if (next_[a] != kNone) {
           ++stats_.rejected_topology;
@@ -348,7 +344,6 @@ class PieceMerger {
       c.inner_half_edges += part.loop_size;
       for (int a = 0; a < 3; ++a) c.normal[a] += part.area[a];
     }
-    (void)inner_half_edges;
     for (Component& c : components_) {
       c.inner_half_edges -= c.loop_edges;
       const auto euler = static_cast<std::int64_t>(c.vertices) -
@@ -1238,7 +1233,7 @@ class PieceMerger {
     std::size_t vertices = 0;
     std::size_t faces = 0;
     std::size_t loop_edges = 0;
-    std::size_t inner_half_edges = 0;  // try_compose: loop edges of its parts not on the block's
+    std::size_t inner_half_edges = 0;  // try_compose: its parts' loop edges inside the block
     std::uint32_t loop_start = 0;  // a block-local loop vertex
     std::uint32_t loop_first = 0;  // in loop_
     P3 normal{0, 0, 0};
