@@ -312,16 +312,15 @@ class PieceMerger {
   bool try_compose(const Box& box, std::int32_t size, std::size_t first_part) {
     start_local_table();
     const FaceTest faces(box);
-    auto local_of = [&](VertexId v) { return local_vertex(v, faces); };
     const auto parts = static_cast<std::uint32_t>(disks_.size() - first_part);
     part_component_.resize(parts);
     for (std::uint32_t p = 0; p < parts; ++p) {
       const MergedDisk& part = disks_[first_part + p];
       const std::uint32_t* loop = loops_.data() + part.loop_first;
-      std::uint32_t previous = local_of(loop[part.loop_size - 1]);
+      std::uint32_t previous = local_vertex(loop[part.loop_size - 1], faces);
       for (std::uint32_t k = 0; k < part.loop_size; ++k) {
         const std::uint32_t a = previous;
-        const std::uint32_t b = local_of(loop[k]);
+        const std::uint32_t b = local_vertex(loop[k], faces);
         previous = b;
         unite(a, b);
         if ((masks_[a] & masks_[b]) == 0) continue;  // on a face two parts share
@@ -443,11 +442,12 @@ class PieceMerger {
       for (std::uint32_t p = 0; p < parts; ++p) {
         if (part_component_[p] != i) continue;
         const MergedDisk& part = disks_[first_part + p];
-        composed_triangles_.insert(composed_triangles_.end(),
-                                   disk_triangles_.begin() + part.triangles_first,
-                                   disk_triangles_.begin() + part.triangles_first + part.face_count);
-        composed_areas_.insert(composed_areas_.end(), disk_areas_.begin() + part.triangles_first,
-                               disk_areas_.begin() + part.triangles_first + part.face_count);
+        const auto first = static_cast<std::ptrdiff_t>(part.triangles_first);
+        const auto end = first + static_cast<std::ptrdiff_t>(part.face_count);
+        composed_triangles_.insert(composed_triangles_.end(), disk_triangles_.begin() + first,
+                                   disk_triangles_.begin() + end);
+        composed_areas_.insert(composed_areas_.end(), disk_areas_.begin() + first,
+                               disk_areas_.begin() + end);
         for (std::uint32_t k = 0; k < part.vertex_count; ++k) {
           const VertexId v = disk_vertices_[part.vertices_first + k];
           if (stamp_[v] == visit_) continue;
@@ -455,8 +455,10 @@ class PieceMerger {
           composed_vertices_.push_back(v);
         }
       }
-      disk.face_count = static_cast<std::uint32_t>(composed_triangles_.size()) - disk.triangles_first;
-      disk.vertex_count = static_cast<std::uint32_t>(composed_vertices_.size()) - disk.vertices_first;
+      disk.face_count =
+          static_cast<std::uint32_t>(composed_triangles_.size()) - disk.triangles_first;
+      disk.vertex_count =
+          static_cast<std::uint32_t>(composed_vertices_.size()) - disk.vertices_first;
       composed_disks_.push_back(disk);
     }
     return true;
@@ -511,7 +513,7 @@ class PieceMerger {
         ++c.loop_edges;
         c.loop_start = v;
       }
-  }
+    }
   }
 
   // Appends c's loop (from c.loop_start along next_) to `loops` at c.loop_first and returns
@@ -1283,7 +1285,6 @@ class PieceMerger {
   std::vector<std::uint8_t> flat_masks_;
   std::vector<P3> mm_;             // the loop in patient millimetres, for shape()
   std::vector<std::array<double, 4>> edge_boxes_;  // flat_is_simple's scratch
-
   std::vector<double> ear_shape_;  // shape() of each triangle in ears_
   std::vector<std::uint32_t> edge_owner_;  // flip_for_shape's edge table, zero between loops
   std::vector<std::array<std::uint32_t, 3>> rejected_;  // and its rejected flips
