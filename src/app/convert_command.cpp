@@ -274,8 +274,8 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
       ->check(CLI::NonNegativeNumber);
   command->add_option("--decimator", options.finish_options.decimator,
                       "Library of that reduction: openmesh (default; its bound holds at the "
-                      "input's vertices by construction) or meshopt (meshoptimizer, checked after, OpenMesh when a "
-                      "check fails)")
+                      "input's vertices by construction) or meshopt (meshoptimizer, checked "
+                      "after, OpenMesh when a check fails)")
       ->check(CLI::IsMember({"openmesh", "meshopt"}));
   command->add_option("--denoise", options.denoise, "Denoise first: none, gaussian, median, bilateral")
       ->check(CLI::IsMember({"none", "gaussian", "median", "bilateral"}));

@@ -241,7 +241,8 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
         details.emplace_back("meshopt_passes", std::to_string(report.meshopt.passes));
         details.emplace_back("meshopt_ms", number(report.meshopt.simplify_ms));
         details.emplace_back("meshopt_check_ms", number(report.meshopt.check_ms));
-        details.emplace_back("meshopt_kept_triangles", std::to_string(report.meshopt.kept_triangles));
+        details.emplace_back("meshopt_kept_triangles",
+                             std::to_string(report.meshopt.kept_triangles));
         if (report.meshopt.sampled_error >= 0) {
           details.emplace_back("meshopt_sampled_error_mm", number(report.meshopt.sampled_error));
         }

@@ -1,9 +1,9 @@
 // check_mesh: triangle corners bucketed by vertex (counting sort, O(n)), each vertex's link
 // examined on its own for the vertex and its edges; components by union-find.
-// detail::check_mesh_by_sorting is the
-// first, simplest version (one global sort of the half-edges, a vector per vertex): it stays as
-// the oracle the fast one is tested against. The fast one exists because the pipeline checks
-// the mesh after every finishing step: on 600 k triangles the sorting version took 0.35 s.
+// detail::check_mesh_by_sorting is the first, simplest version (one global sort of the
+// half-edges, a vector per vertex): it stays as the oracle the fast one is tested against.
+// The fast one exists because the pipeline checks the mesh after every finishing step: on
+// 600 k triangles the sorting version took 0.35 s.
 #include "core/mesh_checks.h"
 
 #include <algorithm>

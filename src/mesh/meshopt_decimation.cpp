@@ -357,7 +357,9 @@ DecimationReport decimate_with_meshopt(core::TriangleMesh& mesh,
     }
 
     for (const auto& t : mesh.triangles) {
-      if (locked[t[0]] != 0 || locked[t[1]] != 0 || locked[t[2]] != 0) ++report.meshopt.kept_triangles;
+      if (locked[t[0]] != 0 || locked[t[1]] != 0 || locked[t[2]] != 0) {
+        ++report.meshopt.kept_triangles;
+      }
     }
     compute_vertex_normals(result);
     mesh = std::move(result);
