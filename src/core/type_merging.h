@@ -70,8 +70,8 @@
 // 16 bytes; 4 bytes per merged vertex; the disks' loops) + 31 bytes × the padded slice area
 // (the extractor's buffers) — flat in the number of slices (abdomen at 300 HU, 134 to 1,072
 // slices: 28.5–34.0 MiB above the output mesh); with T threads up to T + 1 pieces exist.
-// The output is the same for every thread count; it depends on
-// slab_layers and block_cubes (no box crosses a seam: seams cost some reduction).
+// The output is the same for every thread count; it depends on slab_layers and block_cubes
+// (no box crosses a seam: seams cost some reduction).
 #pragma once
 
 #include <array>
