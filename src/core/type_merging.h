@@ -9,9 +9,17 @@
 //
 // What it does, per piece of slab_layers cube layers:
 //  1. Blocks of B × B × B cubes (B = block_cubes, aligned to the piece; cut by the piece's and
-//     the lattice's ends) are tested bottom up: each 2 × 2 × 2 block (or, if it fails, each of
-//     its two layers 2 × 2 × 1, or each of their rows 2 × 1 × 1), then every block of twice the
-//     edge whose eight halves all passed, which then replaces them if it passes too. The
+//     the lattice's ends; B/2 along an axis whose step is at least √2 times the finest, so
+//     8 × 8 × 4 on 3 mm slices over 1 mm pixels) are tested bottom up: each 2 × 2 × 2 block
+//     (or, if it fails, each of its two layers 2 × 2 × 1, or each of their rows 2 × 1 × 1),
+//     then every block whose parts all passed, which then replaces them if it passes too. A
+//     block's parts halve it along the axes it is longest along in millimetres (within √2 of
+//     the longest), so blocks grow towards cubes in millimetres, not in voxels: on the
+//     abdomen's 1.07 × 1.07 × 3 mm grid 2 × 2 × 2 → 4 × 4 × 2 → 8 × 8 × 4 cubes (2.1 × 2.1 × 6,
+//     4.3 × 4.3 × 6, 8.6 × 8.6 × 12 mm), which pass more often than 4 × 4 × 4 and 8 × 8 × 8
+//     (4.3 × 4.3 × 12 and 8.6 × 8.6 × 24 mm) and merge more (abdomen 300 HU 54.1 → 53.7 %,
+//     −500 HU 20.9 → 20.2 % of marching cubes' triangles, fewer needles: angles below 1° at
+//     −500 HU 1.38 → 1.16 %, marching cubes 1.34 %); on isotropic grids nothing changes. The
 //     marching-cubes triangles of a box split into components (through shared vertices); a
 //     component passes when it
 //      * is one disk: Euler characteristic 1 and one boundary loop, the loop being its edges
@@ -93,6 +101,9 @@ struct MergeOptions {
   // Largest block edge in cubes (a power of two >= 2). Larger blocks rarely pass on CT (few
   // 16-blocks are flat within half a voxel) and cost a test each.
   unsigned block_cubes = 8;
+  // Blocks shaped by the grid's spacing (step 1 above); false: cubes of block_cubes halved
+  // along every axis at once, whatever the spacing.
+  bool blocks_follow_spacing = true;
   // Cube layers per piece on average (0 = one piece): about layers / slab_layers pieces, cut
   // where the estimated surface below is equal (detail::piece_bounds); blocks are aligned to
   // the piece.
