@@ -5,12 +5,14 @@
 //  * every triangle index is a vertex of the mesh, for all three;
 //  * consistent mode with closed borders: closed, manifold, consistently oriented, no
 //    degenerate triangle; with open borders the same except boundary edges;
-//  * type merging, in pieces of 1 to 4 layers and blocks of 2 to 8 cubes, keeps those
-//    guarantees and the Euler characteristic and number of components of the marching-cubes
-//    mesh it merges, and stays within epsilon of it (sampled over both surfaces);
+//  * type merging, in pieces of 1 to 4 layers and blocks of 2 to 8 cubes (shaped by one of
+//    four spacings), keeps those guarantees and the Euler characteristic and number of
+//    components of the marching-cubes mesh it merges, and stays within epsilon of it
+//    (sampled over both surfaces);
 //  * threads > 1 give the serial output exactly (extraction and type merging);
 //  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -84,7 +86,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const bool close_borders = (settings & 4) == 0;
   const bool try_threads = (settings & 8) != 0;
   const VolumeSize volume_size{in.pick(9), in.pick(9), in.pick(9)};
-  Volume volume(volume_size, {});
+  // Spacings that shape type merging's blocks (MergeOptions::blocks_follow_spacing): even,
+  // thick slices, coarse rows and columns, and three different steps.
+  constexpr std::array<std::array<double, 3>, 4> kSpacings{
+      {{1.0, 1.0, 1.0}, {0.7, 0.7, 3.0}, {3.2, 3.2, 1.5}, {0.5, 1.0, 2.5}}};
+  const std::array<double, 3>& step = kSpacings[in.pick(4)];
+  IndexToPatient geometry;
+  geometry.axes = {{{step[0], 0, 0}, {0, step[1], 0}, {0, 0, step[2]}}};
+  Volume volume(volume_size, geometry);
   const float iso = sample(in, scheme) + (in.flag() ? 0.5f : 0.0f);
   for (float& v : volume.samples()) v = sample(in, scheme);
 
