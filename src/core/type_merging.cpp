@@ -237,15 +237,15 @@ class PieceMerger {
     if (size <= 2) {
       if (try_merge(cubes, box, size, /*emit_failures=*/false)) return true;
       // Its two layers alone (2 × 2 × 1): thinner along z, where slices are often thicker;
-      // where a layer fails, its two rows (2 × 1 × 1). A leaf already one cube thick along
-      // an axis is not split along it.
+      // where a layer fails, its two rows (2 × 1 × 1); where a row fails, its cubes alone.
+      // A leaf already one cube thick along an axis is not split along it.
       std::array<int, 2> axes{};
       int count = 0;
       for (int axis : {2, 1}) {
         if (dims[axis] == 2) axes[count++] = axis;
       }
       if (count == 0) {
-        try_merge(cubes, box, size, /*emit_failures=*/true);
+        try_single_cubes(cubes);
       } else {
         try_halves(cubes, box, std::span(axes).first(count));
       }
@@ -299,13 +299,32 @@ class PieceMerger {
   }
 
   // A box that failed as a whole, tried as its two halves along axes[0], each half that
-  // fails as its halves along axes[1], and so on; the last halves keep the marching-cubes
-  // triangles of what fails.
+  // fails as its halves along axes[1], and so on; each of the last halves that fails, as its
+  // single cubes.
   void try_halves(std::span<std::uint32_t> cubes, const Box& box, std::span<const int> axes) {
     const bool last = axes.size() == 1;
     for (const auto& [part, part_box] : halves(cubes, box, axes[0])) {
-      if (part.empty() || try_merge(part, part_box, 1, /*emit_failures=*/last) || last) continue;
-      try_halves(part, part_box, axes.subspan(1));
+      if (part.empty() || try_merge(part, part_box, 1, /*emit_failures=*/false)) continue;
+      if (last) {
+        try_single_cubes(part);
+      } else {
+        try_halves(part, part_box, axes.subspan(1));
+      }
+    }
+  }
+
+  // Each cube alone, as a box of one cube: a passing polygon gets no fewer triangles, but the
+  // triangulation step re-triangulates it for shape (best ears, flips) where marching cubes'
+  // table fans it; what fails keeps marching cubes' triangles. (Abdomen CT at 300 HU: the
+  // cubes of failed rows held 1,747 of the 6,631 triangles with an angle below 1°; tried
+  // alone, 631; the output's share of such angles 1.65 → 1.61 %, marching cubes' 1.63 %.)
+  void try_single_cubes(std::span<std::uint32_t> cubes) {
+    for (std::size_t i = 0; i < cubes.size(); ++i) {
+      const BoundaryCube& cube = cubes_[cubes[i]];
+      Box one;
+      one.lo = {cube.x, cube.y, cube.z};
+      one.hi = {cube.x + 1, cube.y + 1, cube.z + 1};
+      try_merge(cubes.subspan(i, 1), one, 1, /*emit_failures=*/true);
     }
   }
 
@@ -879,7 +898,14 @@ class PieceMerger {
           for (std::size_t r = 1; r < run.size(); ++r) state_[run[r]] = kKept;
         } else {
           run.push_back(loop[end]);
-          const double tolerance = epsilon_ - std::max(block.band, disks_[other].band);
+          // Both disks lie in slabs no wider than `band` along their normals, and the chord
+          // and the thinned polyline are within the tolerance of each other in the face (and
+          // so in any projection): a point of either disk and the nearest point of its
+          // replacement differ by at most the tolerance across and `band` along the normal,
+          // i.e. sqrt(tolerance² + band²) <= epsilon. (epsilon − band, the sum, left abdomen
+          // CT at 53.7 % of marching cubes' triangles at 300 HU, against 47.6 % with this.)
+          const double band = std::max(block.band, disks_[other].band);
+          const double tolerance = std::sqrt(std::max(0.0, epsilon_ * epsilon_ - band * band));
           thin_run(run, 0, run.size() - 1, tolerance);
           for (std::size_t r = 1; r + 1 < run.size(); ++r) {
             if (state_[run[r]] == kOpen) state_[run[r]] = kKept;
