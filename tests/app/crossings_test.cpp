@@ -21,6 +21,7 @@ namespace {
 namespace fs = std::filesystem;
 using typemerge::test::fresh_dir;
 using typemerge::test::run_cli;
+using typemerge::test::optimised_build;
 
 void write_binary_stl(const fs::path& file,
                       const std::vector<std::array<std::array<float, 3>, 3>>& triangles) {
@@ -110,14 +111,6 @@ constexpr RealSeries kRealSeries[] = {
     {"head_tilt_variable", "--resample-spacing", true, true},
     {"head64_resampled", "", false, false},
 };
-
-bool optimised_build() {
-#if defined(NDEBUG) && !defined(__SANITIZE_ADDRESS__)
-  return true;
-#else
-  return false;
-#endif
-}
 
 void expect_printable(const nlohmann::json& stats) {
   EXPECT_EQ(stats["self_intersecting_pairs"], 0);

@@ -22,14 +22,7 @@ namespace typemerge::dicom {
 namespace {
 
 namespace fs = std::filesystem;
-
-bool optimised_build() {
-#if defined(NDEBUG) && !defined(__SANITIZE_ADDRESS__)
-  return true;
-#else
-  return false;
-#endif
-}
+using typemerge::test::optimised_build;
 
 // The merged surface of `folder` against marching cubes' at each iso; returns how many
 // surfaces were compared.

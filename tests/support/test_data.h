@@ -22,6 +22,16 @@ inline std::optional<std::filesystem::path> real_data_dir() {
   return std::nullopt;
 }
 
+// Whether this is the optimised build without sanitizers, where heavy checks on big real
+// series run (an ASan build takes minutes per surface).
+inline bool optimised_build() {
+#if defined(NDEBUG) && !defined(__SANITIZE_ADDRESS__)
+  return true;
+#else
+  return false;
+#endif
+}
+
 }  // namespace typemerge::test
 
 // Binds `var` to the real data folder or skips the test, saying what is missing.
