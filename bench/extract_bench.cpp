@@ -32,7 +32,6 @@
 #include <cstring>
 #include <fstream>
 #include <map>
-#include <numbers>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -67,32 +66,10 @@ struct AngleShares {
   double below_1 = 0;
 };
 AngleShares angle_shares(const core::TriangleMesh& mesh) {
-  std::size_t wide = 0;
-  std::size_t thin = 0;
-  const double cos170 = std::cos(170.0 * std::numbers::pi / 180.0);
-  const double cos1 = std::cos(std::numbers::pi / 180.0);
-  for (const auto& t : mesh.triangles) {
-    double largest_cos = 1.0;  // cos of the largest angle (smallest cosine)
-    double smallest_cos = -1.0;
-    for (int k = 0; k < 3; ++k) {
-      const auto& p = mesh.positions[t[k]];
-      const auto& q = mesh.positions[t[(k + 1) % 3]];
-      const auto& r = mesh.positions[t[(k + 2) % 3]];
-      const double u[3] = {double{q[0]} - p[0], double{q[1]} - p[1], double{q[2]} - p[2]};
-      const double v[3] = {double{r[0]} - p[0], double{r[1]} - p[1], double{r[2]} - p[2]};
-      const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-      const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-      const double c = uu > 0 && vv > 0
-                           ? (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / std::sqrt(uu * vv)
-                           : 1.0;
-      largest_cos = std::min(largest_cos, c);
-      smallest_cos = std::max(smallest_cos, c);
-    }
-    if (largest_cos < cos170) ++wide;
-    if (smallest_cos > cos1) ++thin;
-  }
+  const core::ExtremeAngles counts = core::count_extreme_angles(mesh);
   const double n = static_cast<double>(std::max<std::size_t>(1, mesh.triangles.size()));
-  return {100.0 * static_cast<double>(wide) / n, 100.0 * static_cast<double>(thin) / n};
+  return {100.0 * static_cast<double>(counts.above_170) / n,
+          100.0 * static_cast<double>(counts.below_1) / n};
 }
 
 long current_memory_kib() {

@@ -10,6 +10,7 @@
 #include <cassert>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <numeric>
 #include <stdexcept>
 #include <thread>
@@ -304,6 +305,33 @@ MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCh
                                static_cast<std::int64_t>(check.edges) +
                                static_cast<std::int64_t>(check.triangles);
   return check;
+}
+
+ExtremeAngles count_extreme_angles(const TriangleMesh& mesh) {
+  const double cos170 = std::cos(170.0 * std::numbers::pi / 180.0);
+  const double cos1 = std::cos(std::numbers::pi / 180.0);
+  ExtremeAngles counts;
+  for (const auto& t : mesh.triangles) {
+    double largest_cos = 1.0;  // cosine of the largest angle (the smallest cosine)
+    double smallest_cos = -1.0;
+    for (int k = 0; k < 3; ++k) {
+      const auto& p = mesh.positions[t[k]];
+      const auto& q = mesh.positions[t[(k + 1) % 3]];
+      const auto& r = mesh.positions[t[(k + 2) % 3]];
+      const double u[3] = {double{q[0]} - p[0], double{q[1]} - p[1], double{q[2]} - p[2]};
+      const double v[3] = {double{r[0]} - p[0], double{r[1]} - p[1], double{r[2]} - p[2]};
+      const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+      const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+      const double c = uu > 0 && vv > 0
+                           ? (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / std::sqrt(uu * vv)
+                           : 1.0;
+      largest_cos = std::min(largest_cos, c);
+      smallest_cos = std::max(smallest_cos, c);
+    }
+    if (largest_cos < cos170) ++counts.above_170;
+    if (smallest_cos > cos1) ++counts.below_1;
+  }
+  return counts;
 }
 
 namespace detail {

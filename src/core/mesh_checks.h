@@ -54,6 +54,15 @@ MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads = 1);
 MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
                                           std::size_t removed_components, unsigned threads = 1);
 
+// Triangles with an angle above 170° (caps) and with an angle below 1° (needles), the
+// shapes slicers and FE tools dislike, in the mesh's own coordinates (judge shapes in
+// millimetres: to_patient first). A triangle with a zero-length edge counts as a needle.
+struct ExtremeAngles {
+  std::size_t above_170 = 0;
+  std::size_t below_1 = 0;
+};
+ExtremeAngles count_extreme_angles(const TriangleMesh& mesh);
+
 namespace detail {
 // The same result by the simplest means (a global sort, a vector per vertex): the oracle of
 // the tests.

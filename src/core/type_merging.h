@@ -23,9 +23,8 @@
 //     (4.3 × 4.3 × 12 and 8.6 × 8.6 × 24 mm) and merge more (when thinning's bound was
 //     epsilon − w: abdomen 300 HU 54.1 → 53.7 %, −500 HU 20.9 → 20.2 % of marching cubes'
 //     triangles, angles below 1° at −500 HU 1.38 → 1.16 %, marching cubes 1.34 %); on
-//     isotropic grids nothing changes. The
-//     marching-cubes triangles of a box split into components (through shared vertices); a
-//     component passes when it
+//     isotropic grids nothing changes. The marching-cubes triangles of a box split into
+//     components (through shared vertices); a component passes when it
 //      * is one disk: Euler characteristic 1 and one boundary loop, the loop being its edges
 //        that lie on the box's faces (every other edge has a triangle on each side);
 //      * faces one way: every triangle's normal has a positive component along the disk's

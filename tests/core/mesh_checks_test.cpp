@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 
 #include "core/marching_cubes.h"
@@ -117,6 +118,25 @@ TEST(MeshChecks, ComponentsAndUnusedVertices) {
   EXPECT_EQ(c.vertices, 8u);
   EXPECT_EQ(c.euler_characteristic, 4);
   EXPECT_NEAR(c.volume, 2.0 / 6.0, 1e-12);
+}
+
+// Caps (an angle above 170°) and needles (an angle below 1°), just either side of each bound.
+TEST(MeshChecks, ExtremeAnglesAreCounted) {
+  TriangleMesh m;
+  const float needle = static_cast<float>(std::tan(0.9 * std::numbers::pi / 180.0));  // 0.9° at the origin
+  const float fine = static_cast<float>(std::tan(1.1 * std::numbers::pi / 180.0));
+  const float cap = static_cast<float>(std::tan(4.0 * std::numbers::pi / 180.0));  // 172° at the apex
+  const float open = static_cast<float>(std::tan(6.0 * std::numbers::pi / 180.0));  // 168°
+  m.positions = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0},      // right angle: neither
+                 {1, needle, 0}, {1, fine, 0},         // 0.9° and 1.1° at the origin
+                 {-1, 0, 0}, {0, cap, 0}, {0, open, 0},  // 172° and 168° at the apex
+                 {0, 0, 0}};                           // coincides with vertex 0
+  m.triangles = {{0, 1, 2}, {0, 1, 3}, {0, 1, 4}, {5, 1, 6}, {5, 1, 7}, {0, 8, 2}};
+  const ExtremeAngles counts = count_extreme_angles(m);
+  EXPECT_EQ(counts.above_170, 1u);
+  // The 0.9° triangle and the one with a zero-length edge (the 172° one's others are 4°).
+  EXPECT_EQ(counts.below_1, 2u);
+  EXPECT_EQ(count_extreme_angles(TriangleMesh{}).below_1, 0u);
 }
 
 TEST(MeshChecks, EmptyMesh) {

@@ -15,7 +15,6 @@
 #include <bit>
 #include <cmath>
 #include <cstdio>
-#include <numbers>
 #include <random>
 #include <stdexcept>
 #include <vector>
@@ -316,29 +315,7 @@ TEST(TypeMerging, BlobsStayWatertightAndManifold) {
 // written (patient coordinates).
 std::size_t needles(TriangleMesh mesh, const IndexToPatient& geometry) {
   to_patient(mesh, geometry);
-  const double cos1 = std::cos(std::numbers::pi / 180.0);
-  std::size_t count = 0;
-  for (const auto& t : mesh.triangles) {
-    std::array<std::array<double, 3>, 3> p;
-    for (int k = 0; k < 3; ++k) {
-      for (int a = 0; a < 3; ++a) p[k][a] = mesh.positions[t[k]][a];
-    }
-    double largest_cos = -1.0;
-    for (int k = 0; k < 3; ++k) {
-      const auto& o = p[k];
-      const auto& q = p[(k + 1) % 3];
-      const auto& r = p[(k + 2) % 3];
-      double uv = 0.0, uu = 0.0, vv = 0.0;
-      for (int a = 0; a < 3; ++a) {
-        uv += (q[a] - o[a]) * (r[a] - o[a]);
-        uu += (q[a] - o[a]) * (q[a] - o[a]);
-        vv += (r[a] - o[a]) * (r[a] - o[a]);
-      }
-      largest_cos = std::max(largest_cos, uv / std::sqrt(uu * vv));
-    }
-    if (largest_cos > cos1) ++count;
-  }
-  return count;
+  return count_extreme_angles(mesh).below_1;
 }
 
 // Merged disks are re-triangulated for shape, and so are single cubes whose rows fail (their

@@ -66,7 +66,8 @@ TEST(RealTypeMerging, Head64StaysWithinEpsilon) {
   EXPECT_EQ(expect_within_epsilon(data / "ct" / "head64_resampled", false, false), 1);
 }
 
-// One test per big series, so ctest runs them beside others (each takes 40–120 s).
+// One test per big series, so ctest runs them beside others (145–209 s each in CI's
+// optimised run on two cores).
 #define TYPEMERGE_BIG_SERIES_TEST(name, folder, resample)                              \
   TEST(RealTypeMerging, name) {                                                        \
     TYPEMERGE_REQUIRE_REAL_DATA(data);                                                 \
