@@ -307,29 +307,37 @@ MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCh
   return check;
 }
 
+ExtremeAngles extreme_angles_of(const std::array<double, 3>& p, const std::array<double, 3>& q,
+                                const std::array<double, 3>& r) {
+  static const double cos170 = std::cos(170.0 * std::numbers::pi / 180.0);
+  static const double cos1 = std::cos(std::numbers::pi / 180.0);
+  const std::array<const std::array<double, 3>*, 3> corner{&p, &q, &r};
+  double largest_cos = 1.0;  // cosine of the largest angle (the smallest cosine)
+  double smallest_cos = -1.0;
+  for (int k = 0; k < 3; ++k) {
+    const auto& o = *corner[k];
+    const auto& a = *corner[(k + 1) % 3];
+    const auto& b = *corner[(k + 2) % 3];
+    const double u[3] = {a[0] - o[0], a[1] - o[1], a[2] - o[2]};
+    const double v[3] = {b[0] - o[0], b[1] - o[1], b[2] - o[2]};
+    const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    const double c =
+        uu > 0 && vv > 0 ? (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / std::sqrt(uu * vv) : 1.0;
+    largest_cos = std::min(largest_cos, c);
+    smallest_cos = std::max(smallest_cos, c);
+  }
+  return {largest_cos < cos170 ? 1u : 0u, smallest_cos > cos1 ? 1u : 0u};
+}
+
 ExtremeAngles count_extreme_angles(const TriangleMesh& mesh) {
-  const double cos170 = std::cos(170.0 * std::numbers::pi / 180.0);
-  const double cos1 = std::cos(std::numbers::pi / 180.0);
   ExtremeAngles counts;
+  auto as_double = [&](std::uint32_t v) {
+    const auto& p = mesh.positions[v];
+    return std::array<double, 3>{p[0], p[1], p[2]};
+  };
   for (const auto& t : mesh.triangles) {
-    double largest_cos = 1.0;  // cosine of the largest angle (the smallest cosine)
-    double smallest_cos = -1.0;
-    for (int k = 0; k < 3; ++k) {
-      const auto& p = mesh.positions[t[k]];
-      const auto& q = mesh.positions[t[(k + 1) % 3]];
-      const auto& r = mesh.positions[t[(k + 2) % 3]];
-      const double u[3] = {double{q[0]} - p[0], double{q[1]} - p[1], double{q[2]} - p[2]};
-      const double v[3] = {double{r[0]} - p[0], double{r[1]} - p[1], double{r[2]} - p[2]};
-      const double uu = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
-      const double vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
-      const double c = uu > 0 && vv > 0
-                           ? (u[0] * v[0] + u[1] * v[1] + u[2] * v[2]) / std::sqrt(uu * vv)
-                           : 1.0;
-      largest_cos = std::min(largest_cos, c);
-      smallest_cos = std::max(smallest_cos, c);
-    }
-    if (largest_cos < cos170) ++counts.above_170;
-    if (smallest_cos > cos1) ++counts.below_1;
+    counts += extreme_angles_of(as_double(t[0]), as_double(t[1]), as_double(t[2]));
   }
   return counts;
 }

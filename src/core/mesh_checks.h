@@ -2,6 +2,7 @@
 // extraction and merging tests are written against, so it is kept simple enough to trust.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 
@@ -60,8 +61,17 @@ MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCh
 struct ExtremeAngles {
   std::size_t above_170 = 0;
   std::size_t below_1 = 0;
+
+  ExtremeAngles& operator+=(const ExtremeAngles& other) {
+    above_170 += other.above_170;
+    below_1 += other.below_1;
+    return *this;
+  }
 };
 ExtremeAngles count_extreme_angles(const TriangleMesh& mesh);
+// The same for one triangle (each count 0 or 1), on double positions.
+ExtremeAngles extreme_angles_of(const std::array<double, 3>& p, const std::array<double, 3>& q,
+                                const std::array<double, 3>& r);
 
 namespace detail {
 // The same result by the simplest means (a global sort, a vector per vertex): the oracle of

@@ -3,11 +3,11 @@
 // "A type-merging algorithm for extracting an isosurface from volumetric data", §4), the
 // merged triangles emitted directly. The paper merges runs of cubes of one type along scan
 // directions by moving vertices; this merges whole flat disks in boxes of cubes and
-// re-triangulates each from its border, which reduces more (abdomen CT: 47.6 % of marching
-// cubes' triangles at 300 HU, 17.7 % at −500 HU; 47.4 % and 28.2 % at the bone and skin
+// re-triangulates each from its border, which reduces more (abdomen CT: 48.2 % of marching
+// cubes' triangles at 300 HU, 19.0 % at −500 HU; 48.1 % and 29.0 % at the bone and skin
 // presets' 226 and −718 HU, table kept, where the post-pass of checked vertex moves this
-// replaced left 57.9 % and 30.8 %), keeps triangles well shaped and cannot make crossing
-// triangles.
+// replaced left 57.9 % and 30.8 %), makes no more caps or needles than marching cubes
+// (step 3) and cannot make crossing triangles.
 //
 // What it does, per piece of slab_layers cube layers:
 //  1. Blocks of B × B × B cubes (B = block_cubes, aligned to the piece; cut by the piece's and
@@ -46,9 +46,13 @@
 //     a lattice line (a box edge, shared by other boxes). Both disks drop the same vertices.
 //  3. Each disk's loop is triangulated in the projection by clipping ears, best smallest
 //     angle first, never with an edge between two loop vertices on one face of its box. A
-//     disk that cannot be (or not with at most as many triangles) gets its thinned vertices
-//     back, its neighbours are triangulated again, and with all of them back it keeps its
-//     marching-cubes triangles; this ends because vertices only come back.
+//     disk that cannot be (or not with at most as many triangles, or not with at most as
+//     many caps — an angle above 170° — and as many needles — below 1° — in millimetres as
+//     its marching-cubes triangles) gets its thinned vertices back, its neighbours are
+//     triangulated again, and with all of them back it falls back to the disks it was
+//     composed of in step 1 (each then triangulated the same way), or, made of none, keeps
+//     its marching-cubes triangles; this ends because vertices only come back and disks only
+//     split. So every disk makes no more caps or needles than marching cubes would there.
 //
 // Guarantees (argued in index space; the tests check them in the float32 patient coordinates
 // the files are written in, with CGAL's exact predicates, on synthetic and real CT):
@@ -81,9 +85,11 @@
 // made: its marching-cubes mesh and cube records (about 50 bytes per MC triangle: positions
 // and lattice edges 20 bytes per vertex, triangles 12, cube records 20 per cube) + the
 // merge's state (18 bytes per vertex; per merged MC triangle its id and float area vector,
-// 16 bytes; 4 bytes per merged vertex; the disks' loops) + 31 bytes × the padded slice area
-// (the extractor's buffers) — flat in the number of slices (abdomen at 300 HU, 134 to 1,072
-// slices: 28.5–34.0 MiB above the output mesh); with T threads up to T + 1 pieces exist.
+// 16 bytes; 4 bytes per merged vertex; the disks' loops, and those of their parts with 80
+// bytes per part for step 3's fallback) + 31 bytes × the padded slice area (the extractor's
+// buffers) — flat in the number of slices (abdomen at 300 HU, 134 to 1,072 slices:
+// 28.5–34.0 MiB above the output mesh before the parts were kept; see docs/benchmarks.md);
+// with T threads up to T + 1 pieces exist.
 // The output is the same for every thread count; it depends on slab_layers, block_cubes,
 // blocks_follow_spacing and the grid's spacing
 // (no box crosses a seam: seams cost some reduction).
@@ -135,6 +141,9 @@ struct MergeStats {
   // Merged blocks whose loop could not be triangulated (no valid ear left) or not with fewer
   // triangles than marching cubes: their cubes keep marching cubes' triangles.
   std::size_t blocks_demoted = 0;
+  // Merged blocks whose whole loop could not be triangulated well, replaced by the blocks
+  // they were composed of.
+  std::size_t blocks_split = 0;
   // Loop vertices inside faces two merged blocks share that were thinned away, those given
   // back because a block could not be triangulated without them, and the passes that took.
   std::size_t face_vertices_removed = 0;
