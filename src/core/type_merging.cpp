@@ -111,7 +111,7 @@ struct MergedDisk {
   std::uint32_t made_count = 0;
   bool demoted = false;
   // The disks it was composed of (its component's parts in try_compose), kept in parts_
-  // (their loops in part_loops_, their triangles among its own): a disk whose
+  // (their triangles among its own): a disk whose
   // triangulation is refused falls back to them (split) before marching cubes' triangles.
   std::uint32_t parts_first = 0;
   std::uint32_t parts_count = 0;
@@ -349,19 +349,14 @@ class PieceMerger {
       for (std::size_t p = disks_before; p < disks_.size(); ++p) {
         if (part_component_[p - disks_before] != i) continue;
         const MergedDisk& part = disks_[p];
-        const auto loop = loops_.begin() + part.loop_first;
         RetiredPart retired;
         retired.box = part.box;
-        retired.normal = part.normal;
-        retired.loop_first = static_cast<std::uint32_t>(part_loops_.size());
-        retired.loop_size = part.loop_size;
         // Its triangles stay where the composed disk has them, from this offset on.
         retired.triangles_offset = part_offset_[p - disks_before];
         retired.face_count = part.face_count;
         retired.parts_first = part.parts_first;
         retired.parts_count = part.parts_count;
         retired.size = part.size;
-        part_loops_.insert(part_loops_.end(), loop, loop + part.loop_size);
         parts_.push_back(retired);
       }
       composed.parts_count = static_cast<std::uint32_t>(parts_.size()) - composed.parts_first;
@@ -1042,33 +1037,66 @@ class PieceMerger {
       const RetiredPart& retired = parts_[p];
       MergedDisk part;
       part.box = retired.box;
-      part.loop_first = static_cast<std::uint32_t>(loops_.size());
-      part.loop_size = retired.loop_size;
       part.triangles_first = disks_[id].triangles_first + retired.triangles_offset;
       part.face_count = retired.face_count;
       part.parts_first = retired.parts_first;
       part.parts_count = retired.parts_count;
       part.size = retired.size;
-      part.normal = retired.normal;
-      const auto loop = part_loops_.begin() + retired.loop_first;
-      loops_.insert(loops_.end(), loop, loop + retired.loop_size);
+      rebuild_loop(part);
       again.push_back(static_cast<std::uint32_t>(disks_.size()));
       disks_.push_back(part);
     }
   }
 
+  // A part's loop (appended to loops_) and normal, from its marching-cubes triangles as
+  // try_merge finds them: its edges on its box's faces, directed as their triangles have
+  // them, and the sum of their area vectors. (Summed in another order than when it passed,
+  // the normal may differ in its last bits; every triangle faced it with a margin of 1e-6 of
+  // its area, far above that, so the loop still projects one-to-one.)
+  void rebuild_loop(MergedDisk& part) {
+    const FaceTest faces(part.box);
+    start_local_table();
+    P3 area{0, 0, 0};
+    for (std::uint32_t k = 0; k < part.face_count; ++k) {
+      const Triangle& t = mesh_.triangles[disk_triangles_[part.triangles_first + k]];
+      std::array<std::uint32_t, 3> corner{};
+      for (int c = 0; c < 3; ++c) corner[c] = local_vertex(t[c], faces);
+      for (int c = 0; c < 3; ++c) {
+        const std::uint32_t a = corner[c];
+        const std::uint32_t b = corner[(c + 1) % 3];
+        if ((masks_[a] & masks_[b]) != 0) next_[a] = b;
+      }
+      const P3 p0 = to_double(mesh_.positions[t[0]]);
+      const P3 a = cross(sub(to_double(mesh_.positions[t[1]]), p0),
+                         sub(to_double(mesh_.positions[t[2]]), p0));
+      for (int c = 0; c < 3; ++c) area[c] += a[c];
+    }
+    std::uint32_t start = 0;
+    while (next_[start] == kNone) ++start;  // a disk that passed has a loop
+    part.loop_first = static_cast<std::uint32_t>(loops_.size());
+    std::uint32_t v = start;
+    do {
+      loops_.push_back(vertices_[v]);
+      v = next_[v];
+    } while (v != start);
+    part.loop_size = static_cast<std::uint32_t>(loops_.size()) - part.loop_first;
+    part.area = area;
+    const double length = std::sqrt(dot(area, area));
+    for (int c = 0; c < 3; ++c) part.normal[c] = area[c] / length;
+  }
+
   // Whether the triangulation just made (made_extremes_) has no more caps (an angle above
   // 170°) and no more needles (below 1°), in millimetres, than the block's marching-cubes
   // triangles. Where it has more, the block is refused like one that cannot be triangulated:
-  // its thinned vertices come back and, if the whole loop is no better, it keeps marching
-  // cubes' triangles. The triangles a box's loop forces are the worst where its surface lies
+  // its thinned vertices come back and, if the whole loop is no better, it falls back to its
+  // parts (split_into_parts) or to marching cubes' triangles. The triangles a box's loop forces are the worst where its surface lies
   // within a hair of one of the box's faces: its loop vertices on that face, which no new
   // edge may join, are then spread over the disk, and its few other vertices become the hubs
   // of fans of caps and needles (abdomen CT, 226 HU: 5 % caps among the triangles of 8 × 8 × 4
   // boxes, against 0.22 % in marching cubes). Refusing them (abdomen, table kept) took caps
-  // at 226 HU from 0.26 to 0.03 % (marching cubes 0.22 %) and needles from 1.90 to 1.76 %
-  // (1.85 %), at the cost of 0.6–1.7 points of reduction (tm/mc 47.4 → 48.2 % there, 47.6 →
-  // 48.3 % at 300 HU, 17.7 → 19.4 % at −500 HU). A new triangle can be extreme only if its
+  // at 226 HU from 0.26 to 0.02 % (marching cubes 0.22 %) and needles from 1.90 to 1.76 %
+  // (1.85 %), at the cost of 0.6–1.3 points of reduction (tm/mc 47.4 → 48.1 % there, 47.6 →
+  // 48.2 % at 300 HU, 17.7 → 19.0 % at −500 HU). A new triangle can be extreme only if its
   // smallest angle is below 10° (a cap's other two angles sum to less), so only those are
   // measured, and marching cubes' only for a triangulation with one.
   bool shape_as_good(const MergedDisk& block) const {
@@ -1449,14 +1477,12 @@ class PieceMerger {
   std::vector<std::uint32_t> part_offset_;  // where each part's triangles start in its disk's
   std::vector<Triangle> made_;                 // the disks' new triangles
   // The parts of composed disks (split_into_parts), their triangles_first relative to the
-  // disk's (whose triangles are theirs, gathered by part), and their loops.
-  // What split_into_parts needs of a part (a MergedDisk is twice as large, and this is
-  // kept for every part of every composed disk).
+  // disk's (whose triangles are theirs, gathered by part).
+  // What split_into_parts needs of a part (its loop and normal are found again from its
+  // triangles, rebuild_loop: this is kept for every part of every composed disk, and splits
+  // are rare).
   struct RetiredPart {
     Box box;
-    P3 normal;  // the one its tests passed with
-    std::uint32_t loop_first = 0;  // in part_loops_
-    std::uint32_t loop_size = 0;
     std::uint32_t triangles_offset = 0;
     std::uint32_t face_count = 0;
     std::uint32_t parts_first = 0;
@@ -1464,7 +1490,6 @@ class PieceMerger {
     std::int32_t size = 0;
   };
   std::vector<RetiredPart> parts_;
-  std::vector<VertexId> part_loops_;
   // Block-local scratch, reused.
   std::vector<VertexId> vertices_;
   std::vector<std::uint8_t> masks_;
