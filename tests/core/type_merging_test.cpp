@@ -325,6 +325,33 @@ double share(std::size_t part, std::size_t all) {
   return 100.0 * static_cast<double>(part) / static_cast<double>(all);
 }
 
+// Caps and needles of both surfaces over several volumes.
+struct ShapeTally {
+  ExtremeAngles mc, tm;
+  std::size_t triangles_mc = 0, triangles_tm = 0;
+
+  // Extracts both surfaces of `volume` (its geometry set), with the same topology, and counts.
+  void add(const Volume& volume) {
+    const Extracted e = extract_both(volume, 0.0f, kClosed);
+    expect_same_topology(e);
+    mc += extremes_in_mm(e.mc, volume.geometry());
+    tm += extremes_in_mm(e.tm, volume.geometry());
+    triangles_mc += e.mc.triangles.size();
+    triangles_tm += e.tm.triangles.size();
+  }
+  void print(const char* what) const {
+    std::printf("[ shapes   ] %s: MC %zu triangles, needles %.2f %%, caps %.2f %%; TM %zu, %.2f %%, "
+                "%.2f %%\n",
+                what, triangles_mc, share(mc.below_1, triangles_mc),
+                share(mc.above_170, triangles_mc), triangles_tm, share(tm.below_1, triangles_tm),
+                share(tm.above_170, triangles_tm));
+  }
+  void expect_shares_no_higher() const {
+    EXPECT_LE(share(tm.below_1, triangles_tm), share(mc.below_1, triangles_mc));
+    EXPECT_LE(share(tm.above_170, triangles_tm), share(mc.above_170, triangles_mc));
+  }
+};
+
 // Merged disks are re-triangulated for shape (and refused where that makes more caps or
 // needles than their marching-cubes triangles), and so are single cubes whose rows fail
 // (their polygon fanned by the case table otherwise): on noisy blobs, on even and on thick
@@ -334,32 +361,21 @@ TEST(TypeMerging, NoMoreNeedlesOrCapsThanMarchingCubes) {
   for (const double slice : {1.0, 3.0}) {
     IndexToPatient geometry;
     geometry.axes = {{{0.8, 0, 0}, {0, 0.8, 0}, {0, 0, slice}}};
-    ExtremeAngles mc, tm;
-    std::size_t triangles_mc = 0, triangles_tm = 0;
+    ShapeTally tally;
     for (unsigned seed = 1; seed <= (kSanitized ? 2u : 6u); ++seed) {
       Volume volume = blob_volume(seed, 0.4);
       std::mt19937 rng(seed);
       std::uniform_real_distribution<float> noise(-0.04f, 0.04f);
       for (float& v : volume.samples()) v += noise(rng);
       volume.set_geometry(geometry);
-      const Extracted e = extract_both(volume, 0.0f, kClosed);
-      expect_same_topology(e);
-      mc += extremes_in_mm(e.mc, geometry);
-      tm += extremes_in_mm(e.tm, geometry);
-      triangles_mc += e.mc.triangles.size();
-      triangles_tm += e.tm.triangles.size();
+      tally.add(volume);
     }
     SCOPED_TRACE(slice);
-    std::printf(
-        "[ shapes   ] %.0f mm slices: MC %zu triangles, needles %.2f %%, caps %.2f %%; TM %zu, "
-        "%.2f %%, %.2f %%\n",
-        slice, triangles_mc, share(mc.below_1, triangles_mc), share(mc.above_170, triangles_mc),
-        triangles_tm, share(tm.below_1, triangles_tm), share(tm.above_170, triangles_tm));
-    EXPECT_GT(mc.below_1, 0u);  // the noise makes some, or the test shows nothing
-    EXPECT_LT(tm.below_1, mc.below_1);
-    EXPECT_LE(tm.above_170, mc.above_170);
-    EXPECT_LE(share(tm.below_1, triangles_tm), share(mc.below_1, triangles_mc));
-    EXPECT_LE(share(tm.above_170, triangles_tm), share(mc.above_170, triangles_mc));
+    tally.print(slice == 1.0 ? "blobs, 1 mm slices" : "blobs, 3 mm slices");
+    EXPECT_GT(tally.mc.below_1, 0u);  // the noise makes some, or the test shows nothing
+    EXPECT_LT(tally.tm.below_1, tally.mc.below_1);
+    EXPECT_LE(tally.tm.above_170, tally.mc.above_170);
+    tally.expect_shares_no_higher();
   }
 }
 
@@ -373,8 +389,7 @@ TEST(TypeMerging, NoMoreNeedlesOrCapsThanMarchingCubes) {
 TEST(TypeMerging, TubesOnThickSlicesKeepTheirShape) {
   IndexToPatient geometry;
   geometry.axes = {{{1.07, 0, 0}, {0, 1.07, 0}, {0, 0, 3.0}}};
-  ExtremeAngles mc, tm;
-  std::size_t triangles_mc = 0, triangles_tm = 0;
+  ShapeTally tally;
   for (unsigned seed = 1; seed <= (kSanitized ? 4u : 8u); ++seed) {
     SCOPED_TRACE(seed);
     std::mt19937 rng(seed);
@@ -384,21 +399,12 @@ TEST(TypeMerging, TubesOnThickSlicesKeepTheirShape) {
       return std::hypot(x - 17.3, y - 17.6) - radius + noise(rng);
     });
     volume.set_geometry(geometry);
-    const Extracted e = extract_both(volume, 0.0f, kClosed);
-    expect_same_topology(e);
-    mc += extremes_in_mm(e.mc, geometry);
-    tm += extremes_in_mm(e.tm, geometry);
-    triangles_mc += e.mc.triangles.size();
-    triangles_tm += e.tm.triangles.size();
+    tally.add(volume);
   }
-  std::printf("[ shapes   ] tubes: MC %zu triangles, needles %.2f %%, caps %.2f %%; TM %zu, %.2f %%, "
-              "%.2f %%\n",
-              triangles_mc, share(mc.below_1, triangles_mc), share(mc.above_170, triangles_mc),
-              triangles_tm, share(tm.below_1, triangles_tm), share(tm.above_170, triangles_tm));
-  EXPECT_GT(mc.above_170, 0u);  // marching cubes makes some, or the test shows nothing
-  EXPECT_LE(share(tm.above_170, triangles_tm), share(mc.above_170, triangles_mc));
-  EXPECT_LE(share(tm.below_1, triangles_tm), share(mc.below_1, triangles_mc));
-  EXPECT_LT(static_cast<double>(triangles_tm), 0.25 * static_cast<double>(triangles_mc));
+  tally.print("tubes");
+  EXPECT_GT(tally.mc.above_170, 0u);  // marching cubes makes some, or the test shows nothing
+  tally.expect_shares_no_higher();
+  EXPECT_LT(static_cast<double>(tally.triangles_tm), 0.25 * static_cast<double>(tally.triangles_mc));
 }
 
 // Thin noisy spherical shells (two sheets about a voxel apart, as cortex is) on a grid of
