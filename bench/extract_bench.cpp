@@ -290,15 +290,15 @@ int main(int argc, char** argv) {
                       sampled.hausdorff(), sampled.mean());
           std::fflush(stdout);
           const auto& f = merge_stats;
-          std::printf("    disks merged in blocks 2x1x1 or 2x2x1/2/4/8/16: %zu/%zu/%zu/%zu/%zu; "
-                      "blocks not merged: topology %zu facing %zu flatness %zu outline %zu "
-                      "separation %zu; split %zu, demoted %zu; face vertices thinned %zu (restored %zu) in "
-                      "%zu passes\n",
-                      f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2],
-                      f.blocks_merged[3], f.blocks_merged[4], f.rejected_topology,
-                      f.rejected_facing, f.rejected_flatness, f.rejected_outline,
-                      f.rejected_separation, f.blocks_split, f.blocks_demoted, f.face_vertices_removed,
-                      f.face_vertices_restored, f.triangulation_passes);
+          std::printf(
+              "    disks merged in blocks 2x1x1 or 2x2x1/2/4/8/16: %zu/%zu/%zu/%zu/%zu; "
+              "blocks not merged: topology %zu facing %zu flatness %zu outline %zu "
+              "separation %zu; split %zu, demoted %zu; face vertices thinned %zu (restored %zu) in "
+              "%zu passes\n",
+              f.blocks_merged[0], f.blocks_merged[1], f.blocks_merged[2], f.blocks_merged[3],
+              f.blocks_merged[4], f.rejected_topology, f.rejected_facing, f.rejected_flatness,
+              f.rejected_outline, f.rejected_separation, f.blocks_split, f.blocks_demoted,
+              f.face_vertices_removed, f.face_vertices_restored, f.triangulation_passes);
         }
       }
     }

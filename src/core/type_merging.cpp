@@ -8,14 +8,14 @@
 #include <limits>
 #include <numbers>
 #include <span>
-#include <utility>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
-#include "core/parallel.h"
 #include "core/cube_tables.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
+#include "core/parallel.h"
 
 namespace typemerge::core {
 
@@ -532,7 +532,8 @@ class PieceMerger {
         const MergedDisk& part = disks_[first_part + p];
         const auto first = static_cast<std::ptrdiff_t>(part.triangles_first);
         const auto end = first + static_cast<std::ptrdiff_t>(part.face_count);
-        part_offset_[p] = static_cast<std::uint32_t>(composed_triangles_.size()) - disk.triangles_first;
+        part_offset_[p] =
+            static_cast<std::uint32_t>(composed_triangles_.size()) - disk.triangles_first;
         composed_triangles_.insert(composed_triangles_.end(), disk_triangles_.begin() + first,
                                    disk_triangles_.begin() + end);
         composed_areas_.insert(composed_areas_.end(), disk_areas_.begin() + first,
@@ -1089,14 +1090,14 @@ class PieceMerger {
   // 170°) and no more needles (below 1°), in millimetres, than the block's marching-cubes
   // triangles. Where it has more, the block is refused like one that cannot be triangulated:
   // its thinned vertices come back and, if the whole loop is no better, it falls back to its
-  // parts (split_into_parts) or to marching cubes' triangles. The triangles a box's loop forces are the worst where its surface lies
-  // within a hair of one of the box's faces: its loop vertices on that face, which no new
-  // edge may join, are then spread over the disk, and its few other vertices become the hubs
-  // of fans of caps and needles (abdomen CT, 226 HU: 5 % caps among the triangles of 8 × 8 × 4
-  // boxes, against 0.22 % in marching cubes). Refusing them (abdomen, table kept) took caps
-  // at 226 HU from 0.26 to 0.02 % (marching cubes 0.22 %) and needles from 1.90 to 1.76 %
-  // (1.85 %), at the cost of 0.6–1.3 points of reduction (tm/mc 47.4 → 48.1 % there, 47.6 →
-  // 48.2 % at 300 HU, 17.7 → 19.0 % at −500 HU). A new triangle can be extreme only if its
+  // parts (split_into_parts) or to marching cubes' triangles. The triangles a box's loop forces are
+  // the worst where its surface lies within a hair of one of the box's faces: its loop vertices on
+  // that face, which no new edge may join, are then spread over the disk, and its few other
+  // vertices become the hubs of fans of caps and needles (abdomen CT, 226 HU: 5 % caps among the
+  // triangles of 8 × 8 × 4 boxes, against 0.22 % in marching cubes). Refusing them (abdomen, table
+  // kept) took caps at 226 HU from 0.26 to 0.02 % (marching cubes 0.22 %) and needles from 1.90
+  // to 1.76 % (1.85 %), at the cost of 0.6–1.3 points of reduction (tm/mc 47.4 → 48.1 % there, 47.6
+  // → 48.2 % at 300 HU, 17.7 → 19.0 % at −500 HU). A new triangle can be extreme only if its
   // smallest angle is below 10° (a cap's other two angles sum to less), so only those are
   // measured, and marching cubes' only for a triangulation with one.
   bool shape_as_good(const MergedDisk& block) const {
@@ -1474,7 +1475,7 @@ class PieceMerger {
   std::vector<std::array<float, 3>> composed_areas_;
   std::vector<VertexId> composed_vertices_;
   std::vector<std::uint32_t> part_component_;
-  std::vector<std::uint32_t> part_offset_;  // where each part's triangles start in its disk's
+  std::vector<std::uint32_t> part_offset_;     // where each part's triangles start in its disk's
   std::vector<Triangle> made_;                 // the disks' new triangles
   // The parts of composed disks (split_into_parts), their triangles_first relative to the
   // disk's (whose triangles are theirs, gathered by part).

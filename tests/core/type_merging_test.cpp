@@ -340,11 +340,11 @@ struct ShapeTally {
     triangles_tm += e.tm.triangles.size();
   }
   void print(const char* what) const {
-    std::printf("[ shapes   ] %s: MC %zu triangles, needles %.2f %%, caps %.2f %%; TM %zu, %.2f %%, "
-                "%.2f %%\n",
-                what, triangles_mc, share(mc.below_1, triangles_mc),
-                share(mc.above_170, triangles_mc), triangles_tm, share(tm.below_1, triangles_tm),
-                share(tm.above_170, triangles_tm));
+    std::printf(
+        "[ shapes   ] %s: MC %zu triangles, needles %.2f %%, caps %.2f %%; TM %zu, %.2f %%, "
+        "%.2f %%\n",
+        what, triangles_mc, share(mc.below_1, triangles_mc), share(mc.above_170, triangles_mc),
+        triangles_tm, share(tm.below_1, triangles_tm), share(tm.above_170, triangles_tm));
   }
   void expect_shares_no_higher() const {
     EXPECT_LE(share(tm.below_1, triangles_tm), share(mc.below_1, triangles_mc));
@@ -404,7 +404,8 @@ TEST(TypeMerging, TubesOnThickSlicesKeepTheirShape) {
   tally.print("tubes");
   EXPECT_GT(tally.mc.above_170, 0u);  // marching cubes makes some, or the test shows nothing
   tally.expect_shares_no_higher();
-  EXPECT_LT(static_cast<double>(tally.triangles_tm), 0.25 * static_cast<double>(tally.triangles_mc));
+  EXPECT_LT(static_cast<double>(tally.triangles_tm),
+            0.25 * static_cast<double>(tally.triangles_mc));
 }
 
 // Thin noisy spherical shells (two sheets about a voxel apart, as cortex is) on a grid of

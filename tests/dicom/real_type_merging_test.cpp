@@ -65,9 +65,10 @@ int expect_within_epsilon(const fs::path& folder, bool resample, bool hounsfield
     };
     const auto shares_mc = share_in_mm(mc);
     const auto shares_tm = share_in_mm(tm);
-    std::printf("[ real ∠   ] %s at %.0f: caps %.2f %% (mc %.2f %%), needles %.2f %% (mc %.2f %%)\n",
-                folder.filename().c_str(), static_cast<double>(iso), shares_tm[0], shares_mc[0],
-                shares_tm[1], shares_mc[1]);
+    std::printf(
+        "[ real ∠   ] %s at %.0f: caps %.2f %% (mc %.2f %%), needles %.2f %% (mc %.2f %%)\n",
+        folder.filename().c_str(), static_cast<double>(iso), shares_tm[0], shares_mc[0],
+        shares_tm[1], shares_mc[1]);
     EXPECT_LE(shares_tm[0], shares_mc[0]);
     EXPECT_LE(shares_tm[1], shares_mc[1]);
     // Float rounding of the positions only; the bound itself is exact.
