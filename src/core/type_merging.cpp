@@ -1026,8 +1026,8 @@ class PieceMerger {
   }
 
   // Replaces disk `id`, whose whole loop could not be triangulated well, by its parts: they
-  // are appended to disks_ (their loops and triangles back in loops_ and disk_triangles_)
-  // and queued in `again`. Each passed every test on its own and its box lies in the disk's,
+  // are appended to disks_ (their loops rebuilt into loops_; their triangles are the disk's,
+  // where they already are in disk_triangles_) and queued in `again`. Each passed every test on its own and its box lies in the disk's,
   // so they are what the disk's block would have left had its own test failed, minus
   // thinning (none of their vertices is thinned: those inside the disk's box never were, the
   // disk's loop is whole). Parts of parts stay in parts_ for the parts to fall back to.
