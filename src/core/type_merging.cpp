@@ -1027,10 +1027,11 @@ class PieceMerger {
 
   // Replaces disk `id`, whose whole loop could not be triangulated well, by its parts: they
   // are appended to disks_ (their loops rebuilt into loops_; their triangles are the disk's,
-  // where they already are in disk_triangles_) and queued in `again`. Each passed every test on its own and its box lies in the disk's,
-  // so they are what the disk's block would have left had its own test failed, minus
-  // thinning (none of their vertices is thinned: those inside the disk's box never were, the
-  // disk's loop is whole). Parts of parts stay in parts_ for the parts to fall back to.
+  // where they already are in disk_triangles_) and queued in `again`. Each passed every test
+  // on its own and its box lies in the disk's, so they are what the disk's block would have
+  // left had its own test failed, minus thinning (none of their vertices is thinned: those
+  // inside the disk's box never were, the disk's loop is whole). Parts of parts stay in
+  // parts_ for the parts to fall back to.
   void split_into_parts(std::uint32_t id, std::vector<std::uint32_t>& again) {
     const std::uint32_t first = disks_[id].parts_first;
     const std::uint32_t count = disks_[id].parts_count;
@@ -1086,20 +1087,20 @@ class PieceMerger {
     for (int c = 0; c < 3; ++c) part.normal[c] = area[c] / length;
   }
 
-  // Whether the triangulation just made (made_extremes_) has no more caps (an angle above
-  // 170°) and no more needles (below 1°), in millimetres, than the block's marching-cubes
-  // triangles. Where it has more, the block is refused like one that cannot be triangulated:
-  // its thinned vertices come back and, if the whole loop is no better, it falls back to its
-  // parts (split_into_parts) or to marching cubes' triangles. The triangles a box's loop forces are
-  // the worst where its surface lies within a hair of one of the box's faces: its loop vertices on
-  // that face, which no new edge may join, are then spread over the disk, and its few other
-  // vertices become the hubs of fans of caps and needles (abdomen CT, 226 HU: 5 % caps among the
-  // triangles of 8 × 8 × 4 boxes, against 0.22 % in marching cubes). Refusing them (abdomen, table
-  // kept) took caps at 226 HU from 0.26 to 0.02 % (marching cubes 0.22 %) and needles from 1.90
-  // to 1.76 % (1.85 %), at the cost of 0.6–1.3 points of reduction (tm/mc 47.4 → 48.1 % there, 47.6
-  // → 48.2 % at 300 HU, 17.7 → 19.0 % at −500 HU). A new triangle can be extreme only if its
-  // smallest angle is below 10° (a cap's other two angles sum to less), so only those are
-  // measured, and marching cubes' only for a triangulation with one.
+  // Whether the triangulation just made (made_extremes_) has no more caps (an angle above 170°) and
+  // no more needles (below 1°), in millimetres, than the block's marching-cubes triangles. Where it
+  // has more, the block is refused like one that cannot be triangulated: its thinned vertices come
+  // back and, if the whole loop is no better, it falls back to its parts (split_into_parts) or to
+  // marching cubes' triangles. The triangles a box's loop forces are the worst where its surface
+  // lies within a hair of one of the box's faces: its loop vertices on that face, which no new edge
+  // may join, are then spread over the disk, and its few other vertices become the hubs of fans of
+  // caps and needles (abdomen CT, 226 HU: 5 % caps among the triangles of 8 × 8 × 4 boxes, against
+  // 0.22 % in marching cubes). Refusing them (abdomen, table kept) took caps at 226 HU from 0.26 to
+  // 0.02 % (marching cubes 0.22 %) and needles from 1.90 to 1.76 % (1.85 %), at the cost of 0.6–1.3
+  // points of reduction (tm/mc 47.4 → 48.1 % there, 47.6 → 48.2 % at 300 HU, 17.7 → 19.0 % at −500
+  // HU). A new triangle can be extreme only if its smallest angle is below 10° (a cap's other two
+  // angles sum to less), so only those are measured, and marching cubes' only for a triangulation
+  // with one.
   bool shape_as_good(const MergedDisk& block) const {
     if (made_extremes_.above_170 == 0 && made_extremes_.below_1 == 0) return true;
     ExtremeAngles old;
