@@ -111,8 +111,8 @@ struct MergedDisk {
   std::uint32_t made_count = 0;
   bool demoted = false;
   // The disks it was composed of (its component's parts in try_compose), kept in parts_
-  // (their triangles among its own): a disk whose
-  // triangulation is refused falls back to them (split) before marching cubes' triangles.
+  // (their triangles among its own): a disk whose triangulation is refused falls back to
+  // them (split) before marching cubes' triangles.
   std::uint32_t parts_first = 0;
   std::uint32_t parts_count = 0;
   bool split = false;
@@ -610,13 +610,18 @@ class PieceMerger {
   // whether it is simple projected along c's normal.
   bool append_simple_loop(Component& c, const Box& box, std::vector<VertexId>& loops) {
     c.loop_first = static_cast<std::uint32_t>(loops.size());
-    std::uint32_t v = c.loop_start;
+    append_loop(c.loop_start, loops);
+    project(std::span(loops).subspan(c.loop_first), box, c.normal);
+    return flat_is_simple();
+  }
+
+  // Appends the loop of block-local vertices from `start` along next_ to `loops`.
+  void append_loop(std::uint32_t start, std::vector<VertexId>& loops) const {
+    std::uint32_t v = start;
     do {
       loops.push_back(vertices_[v]);
       v = next_[v];
-    } while (v != c.loop_start);
-    project(std::span(loops).subspan(c.loop_first), box, c.normal);
-    return flat_is_simple();
+    } while (v != start);
   }
 
   // Whether the loop edges (next_) from `start` close into one cycle of all `edges` of them.
@@ -1076,11 +1081,7 @@ class PieceMerger {
     std::uint32_t start = 0;
     while (next_[start] == kNone) ++start;  // a disk that passed has a loop
     part.loop_first = static_cast<std::uint32_t>(loops_.size());
-    std::uint32_t v = start;
-    do {
-      loops_.push_back(vertices_[v]);
-      v = next_[v];
-    } while (v != start);
+    append_loop(start, loops_);
     part.loop_size = static_cast<std::uint32_t>(loops_.size()) - part.loop_first;
     part.area = area;
     const double length = std::sqrt(dot(area, area));
