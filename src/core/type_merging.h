@@ -85,11 +85,11 @@
 // made: its marching-cubes mesh and cube records (about 50 bytes per MC triangle: positions
 // and lattice edges 20 bytes per vertex, triangles 12, cube records 20 per cube) + the
 // merge's state (18 bytes per vertex; per merged MC triangle its id and float area vector,
-// 16 bytes; 4 bytes per merged vertex; the disks' loops, and those of their parts with 80
-// bytes per part for step 3's fallback) + 31 bytes × the padded slice area (the extractor's
-// buffers) — flat in the number of slices (abdomen at 300 HU, 134 to 1,072 slices:
-// 28.5–34.0 MiB above the output mesh before the parts were kept; see docs/benchmarks.md);
-// with T threads up to T + 1 pieces exist.
+// 16 bytes; 4 bytes per merged vertex; the disks' loops, and a 44-byte record per part for
+// step 3's fallback, its loop rebuilt only if it is needed; the block being tested, ~40 bytes
+// per corner of its triangles) + 31 bytes × the padded slice area (the extractor's buffers)
+// — flat in the number of slices (abdomen at 300 HU, 134 to 1,072 slices: 30.1–35.9 MiB
+// above the output mesh; see docs/benchmarks.md); with T threads up to T + 1 pieces exist.
 // The output is the same for every thread count; it depends on slab_layers, block_cubes,
 // blocks_follow_spacing and the grid's spacing
 // (no box crosses a seam: seams cost some reduction).
