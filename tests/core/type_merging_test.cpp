@@ -533,8 +533,9 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
 }
 
 // Pieces are cut where the estimated surface is equal: a volume whose surface is all in its
-// top quarter gets short pieces there and one tall piece below; cuts fall on block
-// multiples when pieces are tall; every layer is in exactly one piece; threads do not matter.
+// top quarter gets short pieces there and one tall piece below; cuts fall on multiples of the
+// blocks' z edge when pieces are tall; every layer is in exactly one piece; threads do not
+// matter.
 TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   // 20 × 20 × 160 samples: a stack of thin plates (many surfaces) in slices 120..159 only.
   const Volume volume = test::sample_volume(20, 20, 160, [](double x, double, double z) {
@@ -558,6 +559,17 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   // Equal heights would cut at 32, 64, 96, 128; the empty bottom is one piece here.
   EXPECT_GE(bounds[1], 112);
   EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 3), bounds);
+  // On 3 mm slices over 1 mm pixels blocks are 8 × 8 × 4 cubes: cuts fall on multiples of 4.
+  {
+    Volume thick = volume;
+    IndexToPatient geometry = thick.geometry();
+    geometry.axes[2] = {0.0, 0.0, 3.0};
+    thick.set_geometry(geometry);
+    const std::vector<std::int64_t> cuts =
+        detail::piece_bounds(thick, 0.0f, kClosed, options, layers, 1);
+    ASSERT_EQ(cuts.size(), bounds.size());
+    for (std::size_t k = 1; k + 1 < cuts.size(); ++k) EXPECT_EQ(cuts[k] % 4, 0) << cuts[k];
+  }
   // Pieces of one layer each, and one piece.
   options.slab_layers = 1;
   const std::vector<std::int64_t> single = detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 2);
@@ -591,6 +603,35 @@ TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
     EXPECT_GT(bounds[k + 1] - bounds[k], first) << k;
     EXPECT_GT(bounds[k + 1] - bounds[k], last) << k;
   }
+}
+
+// On 3 mm slices (blocks 8 × 8 × 4 cubes) cuts fall on multiples of 4, the blocks' z edge,
+// not of 8 (block_cubes), so pieces can be nearer equal: a column through every slice, whose
+// layers cost the same but for the caps, cut into three pieces. The same volume on isotropic
+// voxels (blocks of 8 along z) is cut on multiples of 8.
+TEST(TypeMerging, PieceBoundsSnapToTheBlocksZEdge) {
+  Volume volume = test::sample_volume(40, 40, 96, [](double x, double y, double) {
+    return x >= 2 && x <= 37 && y >= 2 && y <= 37 ? 1.0 : -1.0;
+  });
+  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
+  MergeOptions options;
+  options.slab_layers = 32;
+  const std::vector<std::int64_t> cubes =
+      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
+  ASSERT_EQ(cubes.size(), 4u);
+  for (std::size_t k = 1; k + 1 < cubes.size(); ++k) EXPECT_EQ(cubes[k] % 8, 0) << cubes[k];
+  IndexToPatient geometry = volume.geometry();
+  geometry.axes[2] = {0.0, 0.0, 3.0};
+  volume.set_geometry(geometry);
+  const std::vector<std::int64_t> thick =
+      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
+  ASSERT_EQ(thick.size(), 4u);
+  bool off_eight = false;
+  for (std::size_t k = 1; k + 1 < thick.size(); ++k) {
+    EXPECT_EQ(thick[k] % 4, 0) << thick[k];
+    off_eight = off_eight || thick[k] % 8 != 0;
+  }
+  EXPECT_TRUE(off_eight);
 }
 
 // Open borders across seams: boundaries stay exactly as marching cubes leaves them (the same
