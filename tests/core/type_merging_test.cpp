@@ -585,15 +585,24 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
 // each a layer of flat surface as large as its cross-section: the estimate sees them, so the
 // first and last pieces are shorter than the others (counting x-edges alone, every layer
 // looked the same and the pieces had equal heights).
-TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
-  const Volume volume = test::sample_volume(40, 40, 160, [](double x, double y, double) {
+// A square column through every slice of a 40 × 40 × nz volume, closed by a cap at each end.
+Volume column_through_every_slice(std::int64_t nz) {
+  return test::sample_volume(40, 40, nz, [](double x, double y, double) {
     return x >= 2 && x <= 37 && y >= 2 && y <= 37 ? 1.0 : -1.0;
   });
-  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
+}
+
+// The pieces' bounds of `volume` at iso 0, closed borders, slab_layers 32.
+std::vector<std::int64_t> bounds_of_32_layer_pieces(const Volume& volume, unsigned threads) {
   MergeOptions options;
   options.slab_layers = 32;
+  return detail::piece_bounds(volume, 0.0f, kClosed, options,
+                              detail::cube_layer_count(volume, 0.0f, kClosed), threads);
+}
+
+TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
   const std::vector<std::int64_t> bounds =
-      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 2);
+      bounds_of_32_layer_pieces(column_through_every_slice(160), 2);
   ASSERT_EQ(bounds.size() - 1, 5u);
   const std::int64_t first = bounds[1] - bounds[0];
   const std::int64_t last = bounds[5] - bounds[4];
@@ -610,21 +619,14 @@ TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
 // layers cost the same but for the caps, cut into three pieces. The same volume on isotropic
 // voxels (blocks of 8 along z) is cut on multiples of 8.
 TEST(TypeMerging, PieceBoundsSnapToTheBlocksZEdge) {
-  Volume volume = test::sample_volume(40, 40, 96, [](double x, double y, double) {
-    return x >= 2 && x <= 37 && y >= 2 && y <= 37 ? 1.0 : -1.0;
-  });
-  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
-  MergeOptions options;
-  options.slab_layers = 32;
-  const std::vector<std::int64_t> cubes =
-      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
+  Volume volume = column_through_every_slice(96);
+  const std::vector<std::int64_t> cubes = bounds_of_32_layer_pieces(volume, 1);
   ASSERT_EQ(cubes.size(), 4u);
   for (std::size_t k = 1; k + 1 < cubes.size(); ++k) EXPECT_EQ(cubes[k] % 8, 0) << cubes[k];
   IndexToPatient geometry = volume.geometry();
   geometry.axes[2] = {0.0, 0.0, 3.0};
   volume.set_geometry(geometry);
-  const std::vector<std::int64_t> thick =
-      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
+  const std::vector<std::int64_t> thick = bounds_of_32_layer_pieces(volume, 1);
   ASSERT_EQ(thick.size(), 4u);
   bool off_eight = false;
   for (std::size_t k = 1; k + 1 < thick.size(); ++k) {
