@@ -532,6 +532,14 @@ TEST(TypeMerging, PiecesStitchIntoTheSameSurfaceForAnyThreadCount) {
   }
 }
 
+// The same volume on 3 mm slices over 1 mm pixels (blocks of 8 × 8 × 4 cubes).
+Volume on_3mm_slices(Volume volume) {
+  IndexToPatient geometry = volume.geometry();
+  geometry.axes[2] = {0.0, 0.0, 3.0};
+  volume.set_geometry(geometry);
+  return volume;
+}
+
 // Pieces are cut where the estimated surface is equal: a volume whose surface is all in its
 // top quarter gets short pieces there and one tall piece below; cuts fall on multiples of the
 // blocks' z edge when pieces are tall; every layer is in exactly one piece; threads do not
@@ -561,12 +569,8 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 3), bounds);
   // On 3 mm slices over 1 mm pixels blocks are 8 × 8 × 4 cubes: cuts fall on multiples of 4.
   {
-    Volume thick = volume;
-    IndexToPatient geometry = thick.geometry();
-    geometry.axes[2] = {0.0, 0.0, 3.0};
-    thick.set_geometry(geometry);
     const std::vector<std::int64_t> cuts =
-        detail::piece_bounds(thick, 0.0f, kClosed, options, layers, 1);
+        detail::piece_bounds(on_3mm_slices(volume), 0.0f, kClosed, options, layers, 1);
     ASSERT_EQ(cuts.size(), bounds.size());
     for (std::size_t k = 1; k + 1 < cuts.size(); ++k) EXPECT_EQ(cuts[k] % 4, 0) << cuts[k];
   }
@@ -581,10 +585,6 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   EXPECT_TRUE(detail::piece_bounds(volume, 0.0f, kClosed, options, 0, 1).empty());
 }
 
-// A body cut by both ends of the volume (a column through every slice) is closed by two caps,
-// each a layer of flat surface as large as its cross-section: the estimate sees them, so the
-// first and last pieces are shorter than the others (counting x-edges alone, every layer
-// looked the same and the pieces had equal heights).
 // A square column through every slice of a 40 × 40 × nz volume, closed by a cap at each end.
 Volume column_through_every_slice(std::int64_t nz) {
   return test::sample_volume(40, 40, nz, [](double x, double y, double) {
@@ -600,6 +600,10 @@ std::vector<std::int64_t> bounds_of_32_layer_pieces(const Volume& volume, unsign
                               detail::cube_layer_count(volume, 0.0f, kClosed), threads);
 }
 
+// A body cut by both ends of the volume (a column through every slice) is closed by two caps,
+// each a layer of flat surface as large as its cross-section: the estimate sees them, so the
+// first and last pieces are shorter than the others (counting x-edges alone, every layer
+// looked the same and the pieces had equal heights).
 TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
   const std::vector<std::int64_t> bounds =
       bounds_of_32_layer_pieces(column_through_every_slice(160), 2);
@@ -619,14 +623,11 @@ TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
 // layers cost the same but for the caps, cut into three pieces. The same volume on isotropic
 // voxels (blocks of 8 along z) is cut on multiples of 8.
 TEST(TypeMerging, PieceBoundsSnapToTheBlocksZEdge) {
-  Volume volume = column_through_every_slice(96);
+  const Volume volume = column_through_every_slice(96);
   const std::vector<std::int64_t> cubes = bounds_of_32_layer_pieces(volume, 1);
   ASSERT_EQ(cubes.size(), 4u);
   for (std::size_t k = 1; k + 1 < cubes.size(); ++k) EXPECT_EQ(cubes[k] % 8, 0) << cubes[k];
-  IndexToPatient geometry = volume.geometry();
-  geometry.axes[2] = {0.0, 0.0, 3.0};
-  volume.set_geometry(geometry);
-  const std::vector<std::int64_t> thick = bounds_of_32_layer_pieces(volume, 1);
+  const std::vector<std::int64_t> thick = bounds_of_32_layer_pieces(on_3mm_slices(volume), 1);
   ASSERT_EQ(thick.size(), 4u);
   bool off_eight = false;
   for (std::size_t k = 1; k + 1 < thick.size(); ++k) {
