@@ -6,6 +6,9 @@
 //   extract_bench --synthetic 512x512x300 [--write-nrrd vol.nrrd] ...
 //   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
 //   --spacing resample: accept a series with uneven slice steps as convert's --resample-spacing
+//   --vertex-normals: mc and tm also compute gradient vertex normals (ExtractOptions::
+//     vertex_normals). Off by default, as convert runs them and as --vtk runs flying edges
+//     (ComputeNormalsOff); until 2026-12-04 this bench always computed them.
 //
 // Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,
 // vertices, the peak resident memory added during extraction, and the validity of the surface
@@ -107,7 +110,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
                "       [--algorithms mc,classic,tm,classify] [--threads 1,2] [--repeat 5]\n"
-               "       [--vtk] [--vtk-python /usr/bin/python3]\n"
+               "       [--vtk] [--vtk-python /usr/bin/python3] [--vertex-normals]\n"
                "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
   return 2;
 }
@@ -117,6 +120,7 @@ int usage() {
 int main(int argc, char** argv) {
   std::string vtk_python = "/usr/bin/python3";
   bool vtk = false;
+  bool vertex_normals = false;
   std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
               thread_list = "1", spacing = "refuse";
   int repeat = 5;
@@ -125,6 +129,10 @@ int main(int argc, char** argv) {
     const std::string key = argv[a];
     if (key == "--vtk") {
       vtk = true;
+      continue;
+    }
+    if (key == "--vertex-normals") {
+      vertex_normals = true;
       continue;
     }
     if (a + 1 >= argc) return usage();
@@ -205,6 +213,7 @@ int main(int argc, char** argv) {
       for (const std::string& thread_text : split(thread_list)) {
         core::ExtractOptions options;
         options.threads = static_cast<unsigned>(std::stoi(thread_text));
+        options.vertex_normals = vertex_normals;
         core::AmbiguityStats ambiguity;
         const bool merged = algorithm == "tm";
         if (algorithm == "classic") options.mode = core::ExtractOptions::Mode::classic;

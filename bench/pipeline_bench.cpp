@@ -371,6 +371,7 @@ std::vector<StageFigures> run_stages(const RunSettings& settings, double& cells,
 
   core::ExtractOptions extract;  // convert's defaults: consistent, closed borders
   extract.threads = settings.threads;
+  extract.vertex_normals = false;  // as make_surface: a conversion writes no vertex normals
   // A window preset meshes its window field (built inside both stages, as make_surface does).
   auto extract_from = [&](auto&& extract_surface) {
     if (surface.hi) {

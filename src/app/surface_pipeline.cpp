@@ -89,6 +89,9 @@ void run_moving_step(SurfaceResult& result, const std::string& name, unsigned th
   }
   std::size_t restored = 0;
   if (result.mesh.triangles == before.triangles) {
+    // Normals are one per vertex or none (the extraction makes none, smoothing makes them).
+    const bool restore_normals = before.normals.size() == before.positions.size() &&
+                                 result.mesh.normals.size() == result.mesh.positions.size();
     std::vector<std::uint8_t> back(result.mesh.positions.size(), 0);
     while (found.pairs.size() > *crossings) {
       std::size_t newly = 0;
@@ -98,7 +101,7 @@ void run_moving_step(SurfaceResult& result, const std::string& name, unsigned th
             if (back[v] != 0) continue;
             back[v] = 1;
             result.mesh.positions[v] = before.positions[v];
-            result.mesh.normals[v] = before.normals[v];
+            if (restore_normals) result.mesh.normals[v] = before.normals[v];
             ++newly;
           }
         }
@@ -139,6 +142,9 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   extract.threads = options.threads;
   extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
                                                 : core::ExtractOptions::Mode::consistent;
+  // No gradient normals: nothing a conversion writes stores vertex normals (STL, 3MF and the
+  // preview use facet normals, PLY and OBJ none), and smoothing and decimation recompute them.
+  extract.vertex_normals = false;
 
   run_step(result, "extract (" + options.algorithm + ")", options.threads, [&](core::TriangleMesh& mesh) {
     // A window becomes the field min(v − lo, hi − v) at iso 0 (core/window_field.h).
@@ -285,7 +291,12 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
     field = {};
     const auto offset = static_cast<std::uint32_t>(mesh.positions.size());
     mesh.positions.insert(mesh.positions.end(), inner.positions.begin(), inner.positions.end());
-    mesh.normals.insert(mesh.normals.end(), inner.normals.begin(), inner.normals.end());
+    // Normals stay one per vertex or none: the outer surface may have none (extracted without).
+    if (mesh.normals.size() == offset && inner.normals.size() == inner.positions.size()) {
+      mesh.normals.insert(mesh.normals.end(), inner.normals.begin(), inner.normals.end());
+    } else {
+      mesh.normals.clear();
+    }
     for (const auto& t : inner.triangles) {
       mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
     }

@@ -252,7 +252,11 @@ class Extractor {
  public:
   Extractor(const Volume& volume, float iso, const ExtractOptions& options,
             bool defer_normals = false)
-      : volume_(volume), iso_(iso), options_(options), defer_normals_(defer_normals) {
+      : volume_(volume),
+        iso_(iso),
+        options_(options),
+        defer_normals_(defer_normals),
+        normals_(options.vertex_normals && !defer_normals) {
     pad_ = options.close_borders ? 1 : 0;
     const VolumeSize& s = volume.size();
     width_ = s.nx + 2 * pad_;
@@ -374,11 +378,8 @@ class Extractor {
       }
     };
     reserve(mesh_.positions, vertices);
-    if (defer_normals_) {
-      reserve(vertex_edges_, vertices);
-    } else {
-      reserve(mesh_.normals, vertices);
-    }
+    if (defer_normals_) reserve(vertex_edges_, vertices);
+    if (normals_) reserve(mesh_.normals, vertices);
     reserve(mesh_.triangles, 2.0 * vertices);
     if (options_.cubes != nullptr) reserve(cubes_, vertices);
   }
@@ -607,7 +608,7 @@ class Extractor {
       vertex_edges_.push_back(
           4 * static_cast<std::uint64_t>(x + width_ * (y + height_ * z)) +
           static_cast<std::uint64_t>(axis));
-    } else {
+    } else if (normals_) {
       std::array<Index, 3> p_hi = p_lo;
       ++p_hi[axis];
       mesh_.normals.push_back(lo_inside ? edge_normal(volume_, p_lo, p_hi, axis, t)
@@ -625,14 +626,13 @@ class Extractor {
     int count = 0;
     for (unsigned rest = edges; rest != 0; rest &= rest - 1, ++count) {
       const VertexId v = local[std::countr_zero(rest)];
+      for (int a = 0; a < 3; ++a) position[a] += mesh_.positions[v][a];
+      if (!defer_normals_ && !normals_) continue;
       const std::array<float, 3> vertex_normal =
           defer_normals_ ? detail::deferred_vertex_normal(volume_, iso_, options_.close_borders,
                                                           vertex_edges_[v], centroid_normals_)
                          : mesh_.normals[v];
-      for (int a = 0; a < 3; ++a) {
-        position[a] += mesh_.positions[v][a];
-        normal[a] += vertex_normal[a];
-      }
+      for (int a = 0; a < 3; ++a) normal[a] += vertex_normal[a];
     }
     const double length =
         std::sqrt(normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]);
@@ -646,7 +646,7 @@ class Extractor {
     if (defer_normals_) {
       vertex_edges_.push_back(4 * centroid_normals_.size() + kCentroidEdge);
       centroid_normals_.push_back(centre_normal);
-    } else {
+    } else if (normals_) {
       mesh_.normals.push_back(centre_normal);
     }
     return static_cast<VertexId>(mesh_.positions.size() - 1);
@@ -657,6 +657,7 @@ class Extractor {
   ExtractOptions options_;
   // detail::extract_layers(..., defer_normals): each vertex's edge instead of its normal.
   bool defer_normals_ = false;
+  bool normals_ = true;  // gradient normals into mesh_.normals (options.vertex_normals)
   std::vector<std::uint64_t> vertex_edges_;
   std::vector<std::array<float, 3>> centroid_normals_;
   Index pad_ = 0;
@@ -722,7 +723,7 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
   assert(vertex_base.back() <= std::numeric_limits<VertexId>::max());
   TriangleMesh mesh;
   mesh.positions.resize(vertex_base.back());
-  mesh.normals.resize(vertex_base.back());
+  if (options.vertex_normals) mesh.normals.resize(vertex_base.back());
   mesh.triangles.resize(triangle_base.back());
   if (options.cubes != nullptr) options.cubes->resize(cube_base.back());
   detail::run_parallel(slabs.size(), threads, [&](std::size_t k, unsigned) {
@@ -731,8 +732,10 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
     const std::size_t shared = e.shared_vertices();
     std::copy(part.positions.begin() + static_cast<std::ptrdiff_t>(shared), part.positions.end(),
               mesh.positions.begin() + static_cast<std::ptrdiff_t>(vertex_base[k]));
-    std::copy(part.normals.begin() + static_cast<std::ptrdiff_t>(shared), part.normals.end(),
-              mesh.normals.begin() + static_cast<std::ptrdiff_t>(vertex_base[k]));
+    if (options.vertex_normals) {
+      std::copy(part.normals.begin() + static_cast<std::ptrdiff_t>(shared), part.normals.end(),
+                mesh.normals.begin() + static_cast<std::ptrdiff_t>(vertex_base[k]));
+    }
     const auto own = static_cast<VertexId>(vertex_base[k] - shared);
     const auto below =
         k == 0 ? VertexId{0}

@@ -79,6 +79,12 @@ struct ExtractOptions {
   // Worker threads: 0 = std::thread::hardware_concurrency(), 1 = serial. The output (vertex
   // order, triangles, cube records, statistics) is identical for every value.
   unsigned threads = 1;
+  // Gradient normals per vertex (mesh.normals); false: mesh.normals is left empty, the rest of
+  // the output unchanged. They are a fifth of marching cubes' instructions (abdomen at 300 HU,
+  // callgrind: the gradients and their interpolation 19 % of 0.47 G), and a conversion never
+  // writes them: STL, 3MF and the preview use facet normals from the winding, PLY and OBJ store
+  // none, and smoothing and decimation recompute them.
+  bool vertex_normals = true;
 };
 
 // Cost and memory (W × H = padded slice size, (nx + 2)(ny + 2) with close_borders):

@@ -1599,8 +1599,9 @@ Dims block_dims(const IndexToPatient& geometry, const MergeOptions& options) {
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last) {
   // Normals only for the vertices kept (20–55 % of them on CT), after the merge.
+  const bool normals = extract.vertex_normals;
   detail::SurfacePiece piece =
-      detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/true);
+      detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals);
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
@@ -1632,8 +1633,10 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
     if (new_id[v] == 0) {
       new_id[v] = next;
       out.mesh.positions.push_back(piece.mesh.positions[v]);
-      out.mesh.normals.push_back(detail::deferred_vertex_normal(
-          volume, iso, extract.close_borders, piece.vertex_edges[v], piece.centroid_normals));
+      if (normals) {
+        out.mesh.normals.push_back(detail::deferred_vertex_normal(
+            volume, iso, extract.close_borders, piece.vertex_edges[v], piece.centroid_normals));
+      }
       ++next;
     }
   }
@@ -1670,7 +1673,10 @@ void append_piece(TriangleMesh& out, const MergedPiece& piece, std::vector<Verte
   const auto own = static_cast<std::ptrdiff_t>(piece.shared);
   out.positions.insert(out.positions.end(), piece.mesh.positions.begin() + own,
                        piece.mesh.positions.end());
-  out.normals.insert(out.normals.end(), piece.mesh.normals.begin() + own, piece.mesh.normals.end());
+  if (!piece.mesh.normals.empty()) {
+    out.normals.insert(out.normals.end(), piece.mesh.normals.begin() + own,
+                       piece.mesh.normals.end());
+  }
   for (const auto& t : piece.mesh.triangles) {
     out.triangles.push_back({output_id(t[0]), output_id(t[1]), output_id(t[2])});
   }
@@ -1827,7 +1833,7 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
             return std::max(n, static_cast<std::size_t>(scale * static_cast<double>(n)));
           };
           out.positions.reserve(ahead(vertices));
-          out.normals.reserve(ahead(vertices));
+          if (extract.vertex_normals) out.normals.reserve(ahead(vertices));
           out.triangles.reserve(ahead(triangles));
         }
         append_piece(out, piece, seam);

@@ -657,6 +657,43 @@ TEST(MarchingCubes, ThreadsGiveTheSerialResultOnNoise) {
   expect_same_for_any_thread_count(volume, 0.5f, kClassic);
 }
 
+// Without vertex normals only the normals go: positions, triangles, cube records and
+// statistics are those of the extraction with them, serial or on slabs.
+TEST(MarchingCubes, WithoutVertexNormalsOnlyTheNormalsGo) {
+  const Volume volume = noise_volume(13, 11, 70, 5);
+  for (ExtractOptions options : {kClosed, kOpen, kClassic}) {
+    for (unsigned threads : {1u, 3u}) {
+      SCOPED_TRACE(testing::Message() << options.close_borders << " " << threads);
+      options.threads = threads;
+      std::vector<BoundaryCube> with_cubes, without_cubes;
+      AmbiguityStats with_stats, without_stats;
+      options.cubes = &with_cubes;
+      options.stats = &with_stats;
+      const TriangleMesh with = extract_isosurface(volume, 0.5f, options);
+      options.vertex_normals = false;
+      options.cubes = &without_cubes;
+      options.stats = &without_stats;
+      const TriangleMesh without = extract_isosurface(volume, 0.5f, options);
+      options.vertex_normals = true;
+      ASSERT_EQ(with.normals.size(), with.positions.size());
+      EXPECT_TRUE(without.normals.empty());
+      EXPECT_EQ(without.positions, with.positions);
+      EXPECT_EQ(without.triangles, with.triangles);
+      ASSERT_EQ(without_cubes.size(), with_cubes.size());
+      for (std::size_t k = 0; k < with_cubes.size(); ++k) {
+        EXPECT_EQ(without_cubes[k].index, with_cubes[k].index);
+        EXPECT_EQ(without_cubes[k].first_triangle, with_cubes[k].first_triangle);
+      }
+      EXPECT_EQ(without_stats.joined_faces, with_stats.joined_faces);
+      EXPECT_EQ(without_stats.centroid_vertices, with_stats.centroid_vertices);
+      // The centre vertices, whose normal is their loop's mean, are among them.
+      if (options.mode == ExtractOptions::Mode::consistent) {
+        EXPECT_GT(with_stats.centroid_vertices, 0u);
+      }
+    }
+  }
+}
+
 TEST(MarchingCubes, ThreadsGiveTheSerialResultOnASphere) {
   const Volume volume = sphere_volume(48, 19.3, 23.6, 23.2, 23.9);
   expect_same_for_any_thread_count(volume, 0.0f, kClosed);

@@ -352,6 +352,33 @@ struct ShapeTally {
   }
 };
 
+// Without vertex normals only the normals go: the merged surface is the one made with them,
+// on one piece or several, on one thread or two.
+TEST(TypeMerging, WithoutVertexNormalsOnlyTheNormalsGo) {
+  const std::array<Volume, 3> volumes = {noise_volume(11, 10, 9, 1), noise_volume(11, 10, 9, 2),
+                                         blob_volume(1, 0.4)};
+  const std::array<float, 3> isos = {0.5f, 0.5f, 0.0f};
+  for (std::size_t i = 0; i < volumes.size(); ++i) {
+    for (ExtractOptions extract : {kClosed, kOpen}) {
+      for (unsigned threads : {1u, 2u}) {
+        SCOPED_TRACE(testing::Message() << i << " " << extract.close_borders << " " << threads);
+        MergeOptions options;
+        options.slab_layers = 4;
+        options.threads = threads;
+        const TriangleMesh with = extract_type_merged(volumes[i], isos[i], extract, options);
+        extract.vertex_normals = false;
+        const TriangleMesh without = extract_type_merged(volumes[i], isos[i], extract, options);
+        extract.vertex_normals = true;
+        ASSERT_FALSE(with.empty());
+        ASSERT_EQ(with.normals.size(), with.positions.size());
+        EXPECT_TRUE(without.normals.empty());
+        EXPECT_EQ(without.positions, with.positions);
+        EXPECT_EQ(without.triangles, with.triangles);
+      }
+    }
+  }
+}
+
 // Merged disks are re-triangulated for shape (and refused where that makes more caps or
 // needles than their marching-cubes triangles), and so are single cubes whose rows fail
 // (their polygon fanned by the case table otherwise): on noisy blobs, on even and on thick
