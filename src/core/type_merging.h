@@ -81,7 +81,7 @@
 //
 // Streaming and memory: each piece is extracted alone with its cube records (marching cubes'
 // slabs), without vertex normals, merged, compacted and appended; normals are computed for
-// the vertices kept only, equal to marching cubes'. Peak ≈ the output mesh + per piece being
+// the vertices kept only, equal to marching cubes' (none with extract.vertex_normals false). Peak ≈ the output mesh + per piece being
 // made: its marching-cubes mesh and cube records (about 50 bytes per MC triangle: positions
 // and lattice edges 20 bytes per vertex, triangles 12, cube records 20 per cube) + the
 // merge's state (18 bytes per vertex; per merged MC triangle its id and float area vector,
