@@ -31,7 +31,7 @@
 
 #include "core/marching_cubes.h"
 #include "core/type_merging.h"
-#include "dicom/series_loader.h"
+#include "default_series.h"
 #include "list_argument.h"
 
 namespace {
@@ -196,14 +196,9 @@ int main(int argc, char** argv) {
   if (series_dir.empty() || argc % 2 == 0) return usage();
   if (spacing != "refuse" && spacing != "resample") return usage();
 
-  dicom::ScanOptions scan_options;
-  if (spacing == "resample") scan_options.geometry.spacing = dicom::SpacingPolicy::resample;
-  const auto scan = dicom::scan_folder(series_dir, scan_options);
-  if (!scan.default_series) {
-    std::fprintf(stderr, "no usable series in %s\n", series_dir.c_str());
-    return 1;
-  }
-  const core::Volume volume = dicom::load_series(scan.series[*scan.default_series]).volume;
+  const auto loaded = bench::load_default_series(series_dir, spacing == "resample");
+  if (!loaded) return 1;
+  const core::Volume& volume = *loaded;
   const core::VolumeSize size = volume.size();
   std::printf("%s: %lld x %lld x %lld\n", series_dir.c_str(), static_cast<long long>(size.nx),
               static_cast<long long>(size.ny), static_cast<long long>(size.nz));

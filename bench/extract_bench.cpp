@@ -37,6 +37,7 @@
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/marching_cubes.h"
@@ -44,8 +45,8 @@
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
-#include "dicom/series_loader.h"
 #include "io/nrrd_writer.h"
+#include "default_series.h"
 #include "list_argument.h"
 #include "synthetic_volume.h"
 
@@ -155,14 +156,9 @@ int main(int argc, char** argv) {
   core::Volume volume;
   std::string name;
   if (!series_dir.empty()) {
-    dicom::ScanOptions scan_options;
-    if (spacing == "resample") scan_options.geometry.spacing = dicom::SpacingPolicy::resample;
-    const auto scan = dicom::scan_folder(series_dir, scan_options);
-    if (!scan.default_series) {
-      std::fprintf(stderr, "no usable series in %s\n", series_dir.c_str());
-      return 1;
-    }
-    volume = dicom::load_series(scan.series[*scan.default_series]).volume;
+    auto loaded = bench::load_default_series(series_dir, spacing == "resample");
+    if (!loaded) return 1;
+    volume = std::move(*loaded);
     name = series_dir;
   } else {
     long nx = 0, ny = 0, nz = 0;
