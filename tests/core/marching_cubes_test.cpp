@@ -613,6 +613,24 @@ TEST(MarchingCubes, ResultIsDeterministic) {
   EXPECT_EQ(first.triangles, second.triangles);
 }
 
+// The cube records and ambiguity statistics of two extractions are equal.
+void expect_same_records(const std::vector<BoundaryCube>& cubes, const AmbiguityStats& stats,
+                         const std::vector<BoundaryCube>& expected_cubes,
+                         const AmbiguityStats& expected_stats) {
+  ASSERT_EQ(cubes.size(), expected_cubes.size());
+  for (std::size_t k = 0; k < cubes.size(); ++k) {
+    EXPECT_EQ(cubes[k].x, expected_cubes[k].x);
+    EXPECT_EQ(cubes[k].y, expected_cubes[k].y);
+    EXPECT_EQ(cubes[k].z, expected_cubes[k].z);
+    EXPECT_EQ(cubes[k].index, expected_cubes[k].index);
+    EXPECT_EQ(cubes[k].first_triangle, expected_cubes[k].first_triangle);
+  }
+  EXPECT_EQ(stats.boundary_cubes, expected_stats.boundary_cubes);
+  EXPECT_EQ(stats.cubes_with_ambiguous_faces, expected_stats.cubes_with_ambiguous_faces);
+  EXPECT_EQ(stats.joined_faces, expected_stats.joined_faces);
+  EXPECT_EQ(stats.centroid_vertices, expected_stats.centroid_vertices);
+}
+
 // Threads: slabs of layers extracted independently and concatenated must give exactly the
 // serial result — vertex order, triangles, normals, cube records and statistics — for any
 // thread count (slab boundaries move with it), open or closed, consistent or classic.
@@ -635,18 +653,7 @@ void expect_same_for_any_thread_count(const Volume& volume, float iso, ExtractOp
     EXPECT_EQ(mesh.positions, serial.positions);
     EXPECT_EQ(mesh.normals, serial.normals);
     EXPECT_EQ(mesh.triangles, serial.triangles);
-    ASSERT_EQ(cubes.size(), serial_cubes.size());
-    for (std::size_t k = 0; k < cubes.size(); ++k) {
-      EXPECT_EQ(cubes[k].x, serial_cubes[k].x);
-      EXPECT_EQ(cubes[k].y, serial_cubes[k].y);
-      EXPECT_EQ(cubes[k].z, serial_cubes[k].z);
-      EXPECT_EQ(cubes[k].index, serial_cubes[k].index);
-      EXPECT_EQ(cubes[k].first_triangle, serial_cubes[k].first_triangle);
-    }
-    EXPECT_EQ(stats.boundary_cubes, serial_stats.boundary_cubes);
-    EXPECT_EQ(stats.cubes_with_ambiguous_faces, serial_stats.cubes_with_ambiguous_faces);
-    EXPECT_EQ(stats.joined_faces, serial_stats.joined_faces);
-    EXPECT_EQ(stats.centroid_vertices, serial_stats.centroid_vertices);
+    expect_same_records(cubes, stats, serial_cubes, serial_stats);
   }
 }
 
@@ -679,13 +686,7 @@ TEST(MarchingCubes, WithoutVertexNormalsOnlyTheNormalsGo) {
       EXPECT_TRUE(without.normals.empty());
       EXPECT_EQ(without.positions, with.positions);
       EXPECT_EQ(without.triangles, with.triangles);
-      ASSERT_EQ(without_cubes.size(), with_cubes.size());
-      for (std::size_t k = 0; k < with_cubes.size(); ++k) {
-        EXPECT_EQ(without_cubes[k].index, with_cubes[k].index);
-        EXPECT_EQ(without_cubes[k].first_triangle, with_cubes[k].first_triangle);
-      }
-      EXPECT_EQ(without_stats.joined_faces, with_stats.joined_faces);
-      EXPECT_EQ(without_stats.centroid_vertices, with_stats.centroid_vertices);
+      expect_same_records(without_cubes, without_stats, with_cubes, with_stats);
       // The centre vertices, whose normal is their loop's mean, are among them.
       if (options.mode == ExtractOptions::Mode::consistent) {
         EXPECT_GT(with_stats.centroid_vertices, 0u);
