@@ -200,6 +200,7 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   ExtractOptions extract;
   extract.close_borders = true;
   extract.threads = options.threads;
+  extract.vertex_normals = !outer.normals.empty();  // the joined surface has them or not
   // Extracted slightly deeper than the wall: across a cube, linear interpolation of F (a
   // distance to a convex bend is convex) errs by up to about r² / (8 · wall), the chord
   // error over the cube's diagonal r, toward the outer wall.
@@ -264,7 +265,7 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
         if (new_index[v] == std::numeric_limits<std::uint32_t>::max()) {
           new_index[v] = static_cast<std::uint32_t>(kept.positions.size());
           kept.positions.push_back(inner.positions[v]);
-          kept.normals.push_back(inner.normals[v]);
+          if (extract.vertex_normals) kept.normals.push_back(inner.normals[v]);
         }
         triangle[c] = new_index[v];
       }

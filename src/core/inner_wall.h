@@ -66,7 +66,8 @@ struct InnerWallStats {
 
 // `field` and `iso`: what the outer surface was extracted from (value >= iso inside, closed
 // borders); `outer`: the finished outer surface in patient mm (closed, wound outward). Returns
-// the inner wall in patient mm, wound inward (empty when the wall fills the whole solid).
+// the inner wall in patient mm, wound inward (empty when the wall fills the whole solid), with
+// gradient vertex normals (pointing into the hollow) only when `outer` has normals.
 // Precondition: options.wall_mm > 0, field.geometry().determinant() != 0.
 TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMesh& outer,
                                 const InnerWallOptions& options, InnerWallStats* stats = nullptr);

@@ -131,6 +131,29 @@ TEST(InnerWall, HollowBallIsAClosedShellOfTheWallThickness) {
   }
 }
 
+// The wall has vertex normals, pointing into the hollow, when the outer surface has them, and
+// none when it has none (convert extracts without): the joined surface is uniform.
+TEST(InnerWall, NormalsFollowTheOuterSurface) {
+  const Vec3 centre = {-3 + 15.13, 5 + 14.79, -7 + 15.07};  // the grid's middle
+  const Volume volume = balls_volume({31, 31, 31}, {1, 1, 1}, {{centre, 12}});
+  TriangleMesh outer = outer_surface(volume);
+  InnerWallOptions options;
+  options.wall_mm = 3;
+  const TriangleMesh with = extract_inner_wall(volume, 0.0f, outer, options);
+  ASSERT_FALSE(with.empty());
+  ASSERT_EQ(with.normals.size(), with.positions.size());
+  for (std::size_t v = 0; v < with.positions.size(); ++v) {
+    double outward = 0;  // along the radius: negative, into the hollow
+    for (int a = 0; a < 3; ++a) outward += with.normals[v][a] * (with.positions[v][a] - centre[a]);
+    EXPECT_LT(outward, 0.0);
+  }
+  outer.normals.clear();
+  const TriangleMesh without = extract_inner_wall(volume, 0.0f, outer, options);
+  EXPECT_TRUE(without.normals.empty());
+  EXPECT_EQ(without.positions, with.positions);
+  EXPECT_EQ(without.triangles, with.triangles);
+}
+
 // The outer surface lost a ball the mask still holds (--min-component, --keep-largest): its
 // inner wall would be a cavity in empty space, and is dropped.
 TEST(InnerWall, DropsTheWallOfAComponentTheOuterSurfaceLost) {
