@@ -31,6 +31,7 @@
 
 #include "core/marching_cubes.h"
 #include "core/type_merging.h"
+#include "core/union_find.h"
 #include "default_series.h"
 #include "list_argument.h"
 
@@ -56,16 +57,6 @@ std::array<std::int64_t, 4> plane_key(const I3& a, const I3& b, const I3& c) {
   if (g > 0) n = {n[0] / g, n[1] / g, n[2] / g};
   return {n[0], n[1], n[2], n[0] * a[0] + n[1] * a[1] + n[2] * a[2]};
 }
-
-struct UnionFind {
-  std::vector<std::uint32_t> parent;
-  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0u); }
-  std::uint32_t find(std::uint32_t x) {
-    while (parent[x] != x) x = parent[x] = parent[parent[x]];
-    return x;
-  }
-  void join(std::uint32_t a, std::uint32_t b) { parent[find(a)] = find(b); }
-};
 
 struct Bound {
   std::size_t triangles = 0;  // discretized marching cubes
@@ -105,13 +96,16 @@ Bound coplanar_merge_bound(const core::TriangleMesh& mesh) {
     return *it;
   };
 
-  UnionFind regions(n_tri);
+  std::vector<std::uint32_t> parent(n_tri);
+  std::iota(parent.begin(), parent.end(), 0u);
   for (const Edge& e : edges) {
     const Edge& o = twin(e);
-    if (plane[e.tri] == plane[o.tri]) regions.join(e.tri, o.tri);
+    if (plane[e.tri] == plane[o.tri]) {
+      parent[core::find_root(parent, e.tri)] = core::find_root(parent, o.tri);
+    }
   }
   std::vector<std::uint32_t> region(n_tri);
-  for (std::uint32_t t = 0; t < n_tri; ++t) region[t] = regions.find(t);
+  for (std::uint32_t t = 0; t < n_tri; ++t) region[t] = core::find_root(parent, t);
 
   // Regions at each vertex, and per region its distinct vertices (for χ).
   std::vector<std::pair<std::uint32_t, std::uint32_t>> vertex_region;  // (vertex, region)

@@ -7,7 +7,7 @@
 //   --slab-layers N: type merging's piece height (MergeOptions::slab_layers; default 32)
 //   --spacing resample: accept a series with uneven slice steps as convert's --resample-spacing
 //   --vertex-normals: mc and tm also compute gradient vertex normals (ExtractOptions::
-//     vertex_normals). Off by default, as convert runs them and as --vtk runs flying edges
+//     vertex_normals). Off by default, as convert extracts and as --vtk runs flying edges
 //     (ComputeNormalsOff); until 2026-12-04 this bench always computed them.
 //
 // Prints, per volume × iso × algorithm × threads: median wall time, cells/s, triangles,

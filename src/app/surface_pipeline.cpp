@@ -291,12 +291,9 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
     field = {};
     const auto offset = static_cast<std::uint32_t>(mesh.positions.size());
     mesh.positions.insert(mesh.positions.end(), inner.positions.begin(), inner.positions.end());
-    // Normals stay one per vertex or none: the outer surface may have none (extracted without).
-    if (mesh.normals.size() == offset && inner.normals.size() == inner.positions.size()) {
-      mesh.normals.insert(mesh.normals.end(), inner.normals.begin(), inner.normals.end());
-    } else {
-      mesh.normals.clear();
-    }
+    // The wall has normals exactly when `mesh` has (extract_inner_wall), so they stay one per
+    // vertex or none.
+    mesh.normals.insert(mesh.normals.end(), inner.normals.begin(), inner.normals.end());
     for (const auto& t : inner.triangles) {
       mesh.triangles.push_back({t[0] + offset, t[1] + offset, t[2] + offset});
     }
