@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build ccache pkg-config
   libdcmtk-dev            # DICOM parsing and the JPEG / JPEG-LS / RLE codecs
+  libnifti2-dev           # nifti/: NIfTI-1/2 headers (nifticlib: byte order, qform, sform)
   libopenjp2-7-dev        # JPEG 2000 decoding, which Debian's DCMTK lacks
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev
   libpng-dev              # preview PNGs (not OpenCV imgcodecs: it drags GDAL and 138 libraries)

@@ -1,0 +1,225 @@
+// NIfTI reader: files written byte by byte from the specification (support/volume_file_writers.h)
+// for every data type, both versions, both byte orders, gzip, each geometry source and each
+// refusal; then the shared real NIfTI files.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "nifti/nifti_reader.h"
+#include "support/scratch_files.h"
+#include "support/test_data.h"
+#include "support/volume_file_writers.h"
+
+namespace typemerge::nifti {
+namespace {
+
+namespace fs = std::filesystem;
+using test::NiftiSpec;
+
+NiftiSpec small_spec(int datatype = test::kDtFloat32) {
+  NiftiSpec s;
+  s.dim = {3, 4, 3, 2, 1, 1, 1, 1};
+  s.datatype = datatype;
+  for (int v = 0; v < 24; ++v) s.values.push_back(v);
+  s.srow = {{{-0.5, 0, 0, 10}, {0, 0.75, 0, -20}, {0, 0, 2, 30}}};
+  return s;
+}
+
+NiftiImage decode(const NiftiSpec& spec) {
+  const auto bytes = test::nifti_bytes(spec);
+  return decode_nifti(bytes);
+}
+
+TEST(NiftiReader, SformFloatValuesAndLpsGeometry) {
+  const NiftiImage image = decode(small_spec());
+  EXPECT_EQ(image.volume.size(), (core::VolumeSize{4, 3, 2}));
+  EXPECT_EQ(image.header.geometry_source, "sform");
+  EXPECT_FLOAT_EQ(image.volume.at(3, 2, 1), 23.0f);
+  EXPECT_FLOAT_EQ(image.volume.at(1, 0, 0), 1.0f);
+  const auto& g = image.volume.geometry();
+  // RAS (x, y) negated: LPS.
+  EXPECT_DOUBLE_EQ(g.origin[0], -10);
+  EXPECT_DOUBLE_EQ(g.origin[1], 20);
+  EXPECT_DOUBLE_EQ(g.origin[2], 30);
+  EXPECT_DOUBLE_EQ(g.axes[0][0], 0.5);
+  EXPECT_DOUBLE_EQ(g.axes[1][1], -0.75);
+  EXPECT_DOUBLE_EQ(g.axes[2][2], 2);
+  EXPECT_TRUE(image.values.all_integer);
+  EXPECT_TRUE(image.warnings.empty());
+}
+
+TEST(NiftiReader, EveryIntegerAndFloatTypeWithScaling) {
+  for (int type : {test::kDtUint8, test::kDtInt8, test::kDtInt16, test::kDtUint16, test::kDtInt32,
+                   test::kDtUint32, test::kDtInt64, test::kDtUint64, test::kDtFloat32,
+                   test::kDtFloat64}) {
+    NiftiSpec spec = small_spec(type);
+    spec.slope = 2;
+    spec.inter = -1;
+    const NiftiImage image = decode(spec);
+    for (int v = 0; v < 24; ++v) {
+      ASSERT_FLOAT_EQ(image.volume.samples()[static_cast<std::size_t>(v)], 2.0f * float(v) - 1.0f)
+          << "type " << type;
+    }
+  }
+  NiftiSpec negative = small_spec(test::kDtInt16);
+  negative.values[5] = -1024;
+  EXPECT_FLOAT_EQ(decode(negative).volume.samples()[5], -1024.0f);
+}
+
+TEST(NiftiReader, SlopeZeroMeansNoScaling) {
+  NiftiSpec spec = small_spec(test::kDtInt16);
+  spec.slope = 0;
+  spec.inter = 100;
+  EXPECT_FLOAT_EQ(decode(spec).volume.samples()[7], 7.0f);
+}
+
+TEST(NiftiReader, QformWhenNoSform) {
+  NiftiSpec spec = small_spec();
+  spec.sform_code = 0;
+  spec.qform_code = 1;
+  spec.pixdim = {0.5, 0.75, 2};
+  spec.qoffset = {1, 2, 3};
+  spec.quatern = {0, 0, 1};  // 180° about z: i → -x, j → -y in RAS, so +x, +y in LPS
+  const NiftiImage image = decode(spec);
+  EXPECT_EQ(image.header.geometry_source, "qform");
+  const auto& g = image.volume.geometry();
+  EXPECT_NEAR(g.axes[0][0], 0.5, 1e-6);
+  EXPECT_NEAR(g.axes[1][1], 0.75, 1e-6);
+  EXPECT_NEAR(g.axes[2][2], 2, 1e-6);
+  EXPECT_NEAR(g.origin[0], -1, 1e-6);
+  EXPECT_NEAR(g.origin[1], -2, 1e-6);
+  EXPECT_NEAR(g.origin[2], 3, 1e-6);
+}
+
+TEST(NiftiReader, PixelSpacingAloneWithAWarning) {
+  NiftiSpec spec = small_spec();
+  spec.sform_code = 0;
+  spec.qform_code = 0;
+  spec.pixdim = {0.5, 0.75, 2};
+  const NiftiImage image = decode(spec);
+  EXPECT_EQ(image.header.geometry_source, "pixel spacing");
+  EXPECT_NEAR(image.volume.geometry().spacing(0), 0.5, 1e-6);
+  EXPECT_NEAR(image.volume.geometry().spacing(2), 2, 1e-6);
+  EXPECT_EQ(image.warnings.size(), 1u);
+}
+
+TEST(NiftiReader, Nifti2BigEndianGzipAndExtensions) {
+  const fs::path dir = test::fresh_dir("nifti2");
+  NiftiSpec spec = small_spec(test::kDtInt32);
+  spec.version = 2;
+  spec.big_endian = true;
+  spec.extension = "a private extension";
+  test::write_nifti(dir / "v.nii.gz", spec);
+  const NiftiImage image = read_nifti(dir / "v.nii.gz");
+  EXPECT_EQ(image.header.version, 2);
+  EXPECT_TRUE(image.header.swap);
+  EXPECT_FLOAT_EQ(image.volume.at(3, 2, 1), 23.0f);
+  EXPECT_DOUBLE_EQ(image.volume.geometry().origin[0], -10);
+  const NiftiHeader header = read_header(dir / "v.nii.gz");
+  EXPECT_EQ(header.size, (core::VolumeSize{4, 3, 2}));
+  fs::remove_all(dir);
+}
+
+TEST(NiftiReader, NonFiniteValuesBecomeZeroWithAWarning) {
+  NiftiSpec spec = small_spec(test::kDtFloat32);
+  spec.values[2] = std::nan("");
+  spec.values[3] = 1e300;  // infinite as float
+  const NiftiImage image = decode(spec);
+  EXPECT_EQ(image.values.non_finite, 2u);
+  EXPECT_EQ(image.volume.samples()[2], 0.0f);
+  EXPECT_EQ(image.warnings.size(), 1u);
+}
+
+void expect_refused(const NiftiSpec& spec, const std::string& words) {
+  try {
+    decode(spec);
+    ADD_FAILURE() << "accepted; expected a refusal with '" << words << "'";
+  } catch (const ReadError& error) {
+    EXPECT_NE(std::string(error.what()).find(words), std::string::npos) << error.what();
+  }
+}
+
+TEST(NiftiReader, Refusals) {
+  NiftiSpec four_d = small_spec();
+  four_d.dim = {4, 2, 2, 2, 3, 1, 1, 1};
+  four_d.values.resize(24);
+  expect_refused(four_d, "4D");
+
+  NiftiSpec beyond = small_spec();
+  beyond.vox_offset = 100000;
+  beyond.values.clear();
+  expect_refused(beyond, "beyond the end");
+
+  NiftiSpec truncated = small_spec();
+  truncated.values.resize(10);
+  expect_refused(truncated, "truncated");
+
+  NiftiSpec overflow = small_spec();
+  overflow.version = 2;
+  overflow.dim = {3, std::int64_t{1} << 40, std::int64_t{1} << 40, std::int64_t{1} << 40, 1, 1, 1, 1};
+  expect_refused(overflow, "overflow");
+
+  NiftiSpec zero_dim = small_spec();
+  zero_dim.dim = {3, 4, 0, 2, 1, 1, 1, 1};
+  expect_refused(zero_dim, "dimension 2");
+
+  NiftiSpec non_finite = small_spec();
+  non_finite.srow[1][2] = std::nan("");
+  expect_refused(non_finite, "not finite");
+
+  NiftiSpec singular = small_spec();
+  singular.srow[2] = {0, 0, 0, 5};
+  expect_refused(singular, "singular");
+
+  NiftiSpec complex = small_spec(test::kDtComplex64);
+  expect_refused(complex, "not supported");
+
+  auto bytes = test::nifti_bytes(small_spec());
+  bytes.resize(200);
+  EXPECT_THROW(decode_nifti(bytes), ReadError);
+  bytes.assign(400, 0);
+  EXPECT_THROW(decode_nifti(bytes), ReadError);
+}
+
+TEST(NiftiReader, DamagedGzipIsRefused) {
+  const fs::path dir = test::fresh_dir("nifti_gz");
+  const auto raw = test::nifti_bytes(small_spec());
+  auto gz = test::gzip_bytes(raw);
+  auto cut = gz;
+  cut.resize(gz.size() / 2);
+  test::write_bytes(dir / "cut.nii.gz", cut, false);
+  EXPECT_THROW(read_nifti(dir / "cut.nii.gz"), ReadError);
+  auto flipped = gz;
+  for (std::size_t b = 20; b < flipped.size() - 8; b += 3) flipped[b] ^= 0x5a;
+  test::write_bytes(dir / "bad.nii.gz", flipped, false);
+  EXPECT_THROW(read_nifti(dir / "bad.nii.gz"), ReadError);
+  auto crc = gz;
+  crc[crc.size() - 6] ^= 0xff;  // the CRC of the member
+  test::write_bytes(dir / "crc.nii.gz", crc, false);
+  EXPECT_THROW(read_nifti(dir / "crc.nii.gz"), ReadError);
+  fs::remove_all(dir);
+}
+
+TEST(NiftiReader, MemoryBoundCheckedFromTheHeader) {
+  ReadOptions options;
+  options.max_volume_bytes = 64;
+  EXPECT_THROW(decode_nifti(test::nifti_bytes(small_spec()), options), ReadError);
+}
+
+TEST(NiftiRealData, SharedNiftiFilesLoad) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  for (const char* name : {"bet.nii.gz", "pve_1.nii.gz"}) {
+    const fs::path path = data / "nifti" / name;
+    if (!fs::exists(path)) GTEST_SKIP() << path << " absent";
+    const NiftiImage image = read_nifti(path);
+    EXPECT_GT(image.volume.size().voxels(), 1000) << name;
+    EXPECT_GT(image.volume.geometry().spacing(0), 0.1) << name;
+    EXPECT_LT(image.volume.geometry().spacing(0), 10) << name;
+    EXPECT_LT(image.values.min, image.values.max) << name;
+    EXPECT_EQ(image.values.non_finite, 0u) << name;
+  }
+}
+
+}  // namespace
+}  // namespace typemerge::nifti
