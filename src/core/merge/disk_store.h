@@ -1,0 +1,68 @@
+// The disks step 1 of type merging finds (type_merging.h), in flat arrays that steps 2 and 3
+// read: each disk's box, plane, loop, marching-cubes triangles and vertices, and the parts a
+// composed disk falls back to.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/merge/geometry.h"
+
+namespace typemerge::core::merge {
+
+// A disk that passed every test (a block holds one or several), its loop in
+// DiskStore::loops[loop_first, + loop_size), its marching-cubes triangles in
+// DiskStore::triangles[triangles_first, + face_count) (their area vectors beside them in
+// DiskStore::areas) and its vertices in DiskStore::vertices[vertices_first, + vertex_count).
+struct MergedDisk {
+  Box box;
+  P3 normal;
+  P3 area{0, 0, 0};   // the sum of its triangles' area vectors
+  double band = 0.0;  // thickness of the slab it lies in
+  std::uint32_t loop_first = 0;
+  std::uint32_t loop_size = 0;
+  std::uint32_t triangles_first = 0;
+  std::uint32_t face_count = 0;
+  std::uint32_t vertices_first = 0;
+  std::uint32_t vertex_count = 0;
+  std::int32_t size = 0;  // its block's edge in cubes
+  // Its triangles (step 3) once triangulated; demoted = it could not be (or not with at most
+  // as many triangles, caps and needles as marching cubes), so it keeps its own.
+  std::uint32_t made_first = 0;
+  std::uint32_t made_count = 0;
+  bool demoted = false;
+  // The disks it was composed of, kept in DiskStore::parts (their triangles among its own):
+  // a disk whose triangulation is refused falls back to them (split) before marching cubes'
+  // triangles.
+  std::uint32_t parts_first = 0;
+  std::uint32_t parts_count = 0;
+  bool split = false;
+};
+
+// What a part of a composed disk keeps for its fallback (its loop and normal are found again
+// from its triangles if it is needed: this is kept for every part, and splits are rare).
+struct RetiredPart {
+  Box box;
+  std::uint32_t triangles_offset = 0;  // its triangles' start within its disk's
+  std::uint32_t face_count = 0;
+  std::uint32_t parts_first = 0;
+  std::uint32_t parts_count = 0;
+  std::int32_t size = 0;
+};
+
+struct DiskStore {
+  std::vector<MergedDisk> disks;
+  std::vector<VertexId> loops;                 // each disk's loop, counter-clockwise about its normal
+  std::vector<std::uint32_t> triangles;        // the disks' marching-cubes triangles (ids)
+  std::vector<std::array<float, 3>> areas;     // their area vectors
+  std::vector<VertexId> vertices;              // the disks' marching-cubes vertices
+  std::vector<RetiredPart> parts;
+
+  std::span<const VertexId> loop_of(const MergedDisk& disk) const {
+    return std::span(loops).subspan(disk.loop_first, disk.loop_size);
+  }
+};
+
+}  // namespace typemerge::core::merge

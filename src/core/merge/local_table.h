@@ -1,0 +1,122 @@
+// A block's vertices numbered 0, 1, … in the order first seen, with their positions, their
+// face bits on the block, one directed loop edge leaving each (or none) and a union-find over
+// them: what the disk test and the rebuilding of a part's loop read a block's surface into.
+// Reused from block to block: emptied by a new visit stamp, not cleared (local_vertex runs for
+// every corner of every triangle tested; written by index, not push_back).
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "core/merge/geometry.h"
+
+namespace typemerge::core::merge {
+
+class LocalTable {
+ public:
+  // For a piece of `piece_vertices` vertices at `positions`.
+  explicit LocalTable(std::span<const Position> positions)
+      : positions_of_piece_(positions), stamp_(positions.size(), 0), local_(positions.size(), 0) {}
+
+  // A new stamp for the piece's vertices: after it, seen() is false for every vertex.
+  void new_visit() {
+    if (++visit_ == 0) {
+      std::fill(stamp_.begin(), stamp_.end(), 0);
+      visit_ = 1;
+    }
+  }
+  // Marks v seen in this visit; returns whether it was seen already.
+  bool seen(VertexId v) {
+    if (stamp_[v] == visit_) return true;
+    stamp_[v] = visit_;
+    return false;
+  }
+
+  // Empties the table (a new visit), with room for `capacity` vertices.
+  void start(std::size_t capacity) {
+    new_visit();
+    count_ = 0;
+    if (vertices_.size() < capacity) {
+      vertices_.resize(capacity);
+      positions_.resize(capacity);
+      masks_.resize(capacity);
+      next_.resize(capacity);
+      parent_.resize(capacity);
+    }
+  }
+
+  // Vertex v's local index, adding it (with its face bits on the box) when new.
+  std::uint32_t add(VertexId v, const FaceTest& faces) {
+    if (stamp_[v] != visit_) {
+      stamp_[v] = visit_;
+      const std::uint32_t i = count_++;
+      local_[v] = i;
+      vertices_[i] = v;
+      const Position& p = positions_of_piece_[v];
+      positions_[i] = to_double(p);
+      masks_[i] = static_cast<std::uint8_t>(faces.mask(p));
+      next_[i] = kNone;
+      parent_[i] = i;
+    }
+    return local_[v];
+  }
+  // The local index of a vertex added in this visit.
+  std::uint32_t local(VertexId v) const { return local_[v]; }
+
+  std::uint32_t count() const { return count_; }
+  VertexId vertex(std::uint32_t i) const { return vertices_[i]; }
+  const P3& position(std::uint32_t i) const { return positions_[i]; }
+  unsigned mask(std::uint32_t i) const { return masks_[i]; }
+  std::uint32_t next(std::uint32_t i) const { return next_[i]; }
+  void set_next(std::uint32_t i, std::uint32_t j) { next_[i] = j; }
+
+  std::uint32_t find(std::uint32_t v) {
+    while (parent_[v] != v) {
+      parent_[v] = parent_[parent_[v]];
+      v = parent_[v];
+    }
+    return v;
+  }
+  void unite(std::uint32_t a, std::uint32_t b) {
+    a = find(a);
+    b = find(b);
+    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+  }
+
+  // Appends the loop of local vertices from `start` along next() to `loops` (as piece ids).
+  void append_loop(std::uint32_t start, std::vector<VertexId>& loops) const {
+    std::uint32_t v = start;
+    do {
+      loops.push_back(vertices_[v]);
+      v = next_[v];
+    } while (v != start);
+  }
+
+  // Whether the loop edges from `start` close into one cycle of all `edges` of them.
+  bool loop_closes(std::uint32_t start, std::size_t edges) const {
+    std::size_t steps = 0;
+    std::uint32_t v = start;
+    do {
+      v = next_[v];
+      ++steps;
+    } while (v != start && v != kNone && steps <= edges);
+    return v == start && steps == edges;
+  }
+
+ private:
+  std::span<const Position> positions_of_piece_;
+  std::vector<std::uint32_t> stamp_;  // per piece vertex: the visit that last saw it
+  std::vector<std::uint32_t> local_;  // per piece vertex: its local index
+  std::uint32_t visit_ = 0;
+  std::uint32_t count_ = 0;
+  std::vector<VertexId> vertices_;
+  std::vector<P3> positions_;
+  std::vector<std::uint8_t> masks_;
+  std::vector<std::uint32_t> next_;
+  std::vector<std::uint32_t> parent_;
+};
+
+}  // namespace typemerge::core::merge

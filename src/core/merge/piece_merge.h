@@ -1,0 +1,40 @@
+// One piece of type merging (type_merging.h): marching cubes over its cube layers, the three
+// steps of the merge, and the compaction that keeps the vertices still used; then the join of
+// merged pieces at their seams, in order.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/marching_cubes.h"
+#include "core/merge/geometry.h"
+#include "core/mesh.h"
+#include "core/type_merging.h"
+#include "core/volume.h"
+
+namespace typemerge::core::merge {
+
+// One piece, merged and compacted.
+struct MergedPiece {
+  TriangleMesh mesh;
+  std::size_t shared = 0;     // its first `shared` vertices are the piece below's top slice
+  std::vector<VertexId> top;  // its top slice's vertices (ids in `mesh`), in seam order
+  MergeStats stats;
+  AmbiguityStats ambiguity;
+};
+
+// Cube layers [first, last) of the volume, extracted and merged: step 1 (blocks.h, with
+// disk_test.h), step 2 (loop_thinning.h), step 3 (disk_triangulation.h), then compacted
+// (vertex order kept, so the seam's shared vertices stay first and in order). Normals (when
+// extract.vertex_normals) only for the vertices kept. Throws std::logic_error if a seam
+// vertex were dropped (it cannot be: seam vertices lie on block faces no second disk shares).
+MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
+                        const MergeOptions& options, std::int64_t first, std::int64_t last);
+
+// Appends a merged piece to `out`, joining its shared vertices to `seam` (the output ids of
+// the top slice of the piece appended before it), and makes `seam` its own top slice.
+// Throws std::length_error beyond 32-bit vertex ids.
+void append_piece(TriangleMesh& out, const MergedPiece& piece, std::vector<VertexId>& seam);
+
+}  // namespace typemerge::core::merge
