@@ -5,8 +5,8 @@
 // the mattress touch the patient, so component rules on the surface cannot separate them; in
 // the volume they can:
 //   1. tissue: voxels of fat or denser (> body_threshold_hu, −200). Mattresses, pads and
-//      blankets (foam, −900 to −300 HU) fall out here: measured on the abdomen series, the pad
-//      under the back lies between −900 and −300 HU and is wider than the body.
+//      blankets (foam, −900 to −300 HU) fall out here, even where they are wider than the
+//      body and touch it over a wide contact.
 //   2. seed: the largest 3D component of the tissue after an in-plane opening that cuts thin
 //      contacts (a table top a few mm thick touching the back).
 //   3. body: the tissue within opening + restore_mm of the seed (thin parts of the patient the
@@ -32,8 +32,8 @@ namespace typemerge::preprocess {
 
 struct BodyMaskOptions {
   // What is cleared outside the body: anything above this. It must lie below every surface
-  // threshold used afterwards (skin: −718), or material between the two survives outside the
-  // body: at −500 the abdomen's pad (−700 to −300 HU) stayed under the skin surface.
+  // threshold used afterwards (skin: −718), or material between the two (a foam pad's)
+  // survives outside the body and stays under the skin surface.
   float air_threshold_hu = -950;
   float body_threshold_hu = -200;  // tissue: fat (−100) and denser; foam pads are below
   double opening_mm = 5;           // > 0; radius of the in-plane opening that cuts contacts

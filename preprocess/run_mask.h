@@ -1,10 +1,11 @@
 // Run-length masks of one slice, and the in-plane morphology and 3D components that table
 // removal (body_mask) needs, on runs instead of bytes.
 //
-// Why by hand: table removal on byte masks with OpenCV's morphology took about 1 s of a 3 s
-// whole-body conversion (issue 15: an 11 × 11 elliptical opening, a 15 × 15 dilation and a
-// 5 × 5 one per slice, each reading every pixel once per kernel row). A body slice is a few
-// runs per row, so the same operations on runs cost per run, not per pixel. The results are
+// Why by hand: OpenCV's morphology on byte masks reads every pixel once per kernel row, and
+// table removal runs an elliptical opening and two dilations some mm wide on every slice: a
+// large share of a whole-body conversion that way. A body slice is a few runs per row, so the
+// same operations on runs cost per run, not per pixel (figures: docs/benchmarks.md, "Moved
+// from headers and the README"). The results are
 // exactly OpenCV's: the structuring elements are OpenCV's own (cv::getStructuringElement),
 // read here as one centred interval per kernel row, and erosion treats outside the image as
 // set, dilation as clear — OpenCV's default border for each.

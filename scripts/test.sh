@@ -3,7 +3,7 @@
 # build, then an AddressSanitizer + UndefinedBehaviorSanitizer build; then a short fuzz run of
 # every libFuzzer target (scripts/fuzz.sh, Clang; 20 s each). Real CT data is taken from
 # TYPEMERGE_DATA (default: ../shared/data beside the checkout); tests needing it skip without it.
-# The optimised build also runs the README's cluster recipes (cluster_parallel, cluster_slurm:
+# The optimised build also runs the cluster recipes of docs/cluster.md (cluster_parallel, cluster_slurm:
 # a single-node Slurm started by the test, as root; under CI=true it fails instead of skipping);
 # the sanitizer build does not register them (they test scripts and Slurm, not new code).
 set -euo pipefail

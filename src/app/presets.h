@@ -7,8 +7,8 @@
 // - bone has no upper bound: InVesalius's 3071 is the top of the 12-bit range, not a tissue
 //   limit, and cutting there punches holes around metal and in extended-range scanners;
 // - skin is everything denser than −718 HU: InVesalius's window −718..−177 selects only the
-//   thin air/skin partial-volume layer, whose surface is a broken double shell (measured on
-//   sample_series: 2950 components); its lower bound is kept.
+//   thin air/skin partial-volume layer, whose surface is a broken double shell of thousands
+//   of components; its lower bound is kept.
 #pragma once
 
 #include <array>
@@ -32,7 +32,7 @@ struct Preset {
   double min_component_mm3 = 0;
   bool fill_cavities = false;
   // Skin is one shell: the largest solid (which drops the scanner table) with its cavities
-  // filled (the walls of air inside the body; measured on the abdomen series: 2179 → 1).
+  // filled (the walls of air inside the body), so exactly one shell is left.
   bool keep_largest = false;
 };
 

@@ -80,10 +80,10 @@ struct ExtractOptions {
   // order, triangles, cube records, statistics) is identical for every value.
   unsigned threads = 1;
   // Gradient normals per vertex (mesh.normals); false: mesh.normals is left empty, the rest of
-  // the output unchanged. They are a fifth of marching cubes' instructions (abdomen at 300 HU,
-  // callgrind: the gradients and their interpolation 19 % of 0.47 G), and a conversion never
-  // writes them: STL, 3MF and the preview use facet normals from the winding, PLY and OBJ store
-  // none, and smoothing and decimation recompute them.
+  // the output unchanged. They are about a fifth of marching cubes' instructions, and a
+  // conversion never writes them: STL, 3MF and the preview use facet normals from the winding,
+  // PLY and OBJ store none, and smoothing and decimation recompute them (figures:
+  // docs/benchmarks.md, "Moved from headers and the README").
   bool vertex_normals = true;
 };
 
@@ -142,8 +142,8 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 // Extracts one piece with its cube records (and its ambiguity counts when options.stats is
 // set; the piece holds them, *options.stats is not touched), on the calling thread
 // (options.threads and .cubes are ignored). defer_normals: the mesh gets no normals but
-// vertex_edges, so that a caller who keeps few of the vertices (type merging keeps 20–55 %)
-// computes only theirs, with deferred_vertex_normal, equal to extract_isosurface's.
+// vertex_edges, so that a caller who keeps few of the vertices (type merging keeps half or
+// fewer) computes only theirs, with deferred_vertex_normal, equal to extract_isosurface's.
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals = false);

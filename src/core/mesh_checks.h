@@ -50,8 +50,8 @@ MeshCheck check_mesh(const TriangleMesh& mesh, unsigned threads = 1);
 // its topology follows from the counts (edges = 3 T / 2); only area and volume are summed
 // again, in check_mesh's order, so the result equals check_mesh's exactly. The finishing
 // steps remove components after an extraction that was just checked: this spares a second
-// full check (about a tenth of a one-thread bone conversion, perf). Precondition:
-// before.closed_manifold().
+// full check, a noticeable share of a one-thread conversion (docs/benchmarks.md, "Moved from
+// headers and the README"). Precondition: before.closed_manifold().
 MeshCheck check_after_removing_components(const TriangleMesh& mesh, const MeshCheck& before,
                                           std::size_t removed_components, unsigned threads = 1);
 

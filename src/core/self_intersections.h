@@ -1,8 +1,8 @@
 // Self-intersections of a triangle mesh: pairs of triangles that cross or overlap, decided with
 // exact predicates (CGAL's exact-predicates kernel: orientation tests on the float coordinates
 // as stored, no rounding). The one place the project decides "do these two triangles cross";
-// `typemerge stats --self-intersections`, `convert --check-intersections` and type merging's
-// crossing guard (type_merging.h) all use it.
+// `typemerge stats --self-intersections`, `convert --check-intersections`, meshoptimizer's
+// checks (mesh/meshopt_decimation.h), the tests and the fuzzers all use it.
 //
 // What counts (the semantics of CGAL's Polygon_mesh_processing::self_intersections, so a mesh
 // we call clean is clean for CGAL too; a test compares the two):
@@ -20,9 +20,10 @@
 // make), or
 // CGAL's box_intersection_d when the sizes are too uneven for a grid; then the exact test per
 // pair of meeting boxes, most of them decided by a statically filtered orientation in double
-// before CGAL's predicates. About 1 µs a triangle on this machine (abdomen bone, 535 k
-// triangles: 0.6 s; CGAL's box_intersection_d with the same pair test: 1.3 s). The core links
-// CGAL for this alone (header-only kernel and box intersection, GMP behind the filters).
+// before CGAL's predicates. About 1 µs a triangle, half the time of CGAL's box_intersection_d
+// with the same pair test (figures: docs/benchmarks.md, "Moved from headers and the README").
+// The core links CGAL for this alone (header-only kernel and box intersection, GMP behind the
+// filters).
 #pragma once
 
 #include <array>
@@ -46,7 +47,8 @@ struct SelfIntersections {
 // All crossing pairs of `mesh`'s triangles; with max_pairs > 0 the search stops after that
 // many (the count then is a lower bound; `truncated` says so). With `only_with` non-empty (one
 // flag per triangle), only pairs in which at least one triangle is flagged are looked for:
-// type merging flags the triangles it changed, since marching cubes' own cannot cross.
+// for a caller that changed some triangles of a mesh whose others cannot cross (marching
+// cubes' own cannot), it flags the changed ones.
 SelfIntersections find_self_intersections(const TriangleMesh& mesh, std::size_t max_pairs = 0,
                                           std::span<const std::uint8_t> only_with = {});
 

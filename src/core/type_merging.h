@@ -3,28 +3,23 @@
 // "A type-merging algorithm for extracting an isosurface from volumetric data", §4), the
 // merged triangles emitted directly. The paper merges runs of cubes of one type along scan
 // directions by moving vertices; this merges whole flat disks in boxes of cubes and
-// re-triangulates each from its border, which reduces more (abdomen CT: 48.2 % of marching
-// cubes' triangles at 300 HU, 19.0 % at −500 HU; 48.1 % and 29.0 % at the bone and skin
-// presets' 226 and −718 HU, table kept, where the post-pass of checked vertex moves this
-// replaced left 57.9 % and 30.8 %), makes no more caps or needles than marching cubes
-// (step 3) and cannot make crossing triangles.
+// re-triangulates each from its border, which reduces more, makes no more caps or needles
+// than marching cubes (step 3) and cannot make crossing triangles. Current reductions and
+// their history: docs/benchmarks.md.
 //
-// What it does, per piece of slab_layers cube layers:
-//  1. Blocks of B × B × B cubes (B = block_cubes, aligned to the piece; cut by the piece's and
-//     the lattice's ends; B/2 along an axis whose step is at least √2 times the finest, so
-//     8 × 8 × 4 on 3 mm slices over 1 mm pixels) are tested bottom up: each 2 × 2 × 2 block
-//     (or, if it fails, each of its two layers 2 × 2 × 1, or each of their rows 2 × 1 × 1,
-//     or each of their cubes alone, which is re-triangulated for shape, not reduced),
-//     then every block whose parts all passed, which then replaces them if it passes too. A
-//     block's parts halve it along the axes it is longest along in millimetres (within √2 of
-//     the longest), so blocks grow towards cubes in millimetres, not in voxels: on the
-//     abdomen's 1.07 × 1.07 × 3 mm grid 2 × 2 × 2 → 4 × 4 × 2 → 8 × 8 × 4 cubes (2.1 × 2.1 × 6,
-//     4.3 × 4.3 × 6, 8.6 × 8.6 × 12 mm), which pass more often than 4 × 4 × 4 and 8 × 8 × 8
-//     (4.3 × 4.3 × 12 and 8.6 × 8.6 × 24 mm) and merge more (when thinning's bound was
-//     epsilon − w: abdomen 300 HU 54.1 → 53.7 %, −500 HU 20.9 → 20.2 % of marching cubes'
-//     triangles, angles below 1° at −500 HU 1.38 → 1.16 %, marching cubes 1.34 %); on
-//     isotropic grids nothing changes. The marching-cubes triangles of a box split into
-//     components (through shared vertices); a component passes when it
+// What it does, per piece of slab_layers cube layers (merge/piece_merge.h), in three passes:
+//  1. The box hierarchy (merge/blocks.h). Blocks of B × B × B cubes (B = block_cubes, aligned
+//     to the piece; cut by the piece's and the lattice's ends; B/2 along an axis whose step
+//     is at least √2 times the finest, so 8 × 8 × 4 on 3 mm slices over 1 mm pixels) are
+//     tested bottom up: each 2 × 2 × 2 block (or, if it fails, each of its two layers
+//     2 × 2 × 1, or each of their rows 2 × 1 × 1, or each of their cubes alone, which is
+//     re-triangulated for shape, not reduced), then every block whose parts all passed, which
+//     then replaces them if it passes too. A block's parts halve it along the axes it is
+//     longest along in millimetres (within √2 of the longest), so blocks grow towards cubes in
+//     millimetres, not in voxels (on a 1.07 × 1.07 × 3 mm grid 2 × 2 × 2 → 4 × 4 × 2 → 8 × 8 × 4
+//     cubes); on isotropic grids that is plain octree halving. The marching-cubes triangles of
+//     a box split into components (through shared vertices); a component passes the disk test
+//     (merge/disk_test.h) when it
 //      * is one disk: Euler characteristic 1 and one boundary loop, the loop being its edges
 //        that lie on the box's faces (every other edge has a triangle on each side);
 //      * faces one way: every triangle's normal has a positive component along the disk's
@@ -40,14 +35,16 @@
 //     whose Euler characteristic is V − E + F over those, its loop is the halves' loop edges on
 //     the block's faces, and facing and flatness read the halves' stored area vectors and
 //     vertices (the same tests, without a second pass over the triangles' topology).
-//  2. A loop vertex inside a face that the boxes of exactly two passing disks share (on no
-//     edge of either box) is thinned away where both loops can do without it: Douglas–Peucker
-//     on the face's polyline, within sqrt(epsilon² − max(w₁, w₂)²), never shortcutting along
-//     a lattice line (a box edge, shared by other boxes). Both disks drop the same vertices.
-//  3. Each disk's loop is triangulated in the projection by clipping ears, best smallest
-//     angle first, never with an edge between two loop vertices on one face of its box. A
-//     disk that cannot be (or not with at most as many triangles, or not with at most as
-//     many caps — an angle above 170° — and as many needles — below 1° — in millimetres as
+//  2. Loop thinning (merge/loop_thinning.h). A loop vertex inside a face that the boxes of
+//     exactly two passing disks share (on no edge of either box) is thinned away where both
+//     loops can do without it: Douglas–Peucker on the face's polyline, within
+//     sqrt(epsilon² − max(w₁, w₂)²), never shortcutting along a lattice line (a box edge,
+//     shared by other boxes). Both disks drop the same vertices.
+//  3. Triangulation (merge/disk_triangulation.h, merge/loop_triangulation.h). Each disk's loop
+//     is triangulated in the projection by clipping ears, best smallest angle first, never
+//     with an edge between two loop vertices on one face of its box, then Lawson flips for
+//     shape. A disk that cannot be (or not with at most as many triangles, or not with at most
+//     as many caps — an angle above 170° — and as many needles — below 1° — in millimetres as
 //     its marching-cubes triangles) gets its thinned vertices back, its neighbours are
 //     triangulated again, and with all of them back it falls back to the disks it was
 //     composed of in step 1 (each then triangulated the same way), or, made of none, keeps
@@ -81,18 +78,17 @@
 //
 // Streaming and memory: each piece is extracted alone with its cube records (marching cubes'
 // slabs), without vertex normals, merged, compacted and appended; normals are computed for
-// the vertices kept only, equal to marching cubes' (none with extract.vertex_normals false). Peak ≈ the output mesh + per piece being
-// made: its marching-cubes mesh and cube records (about 50 bytes per MC triangle: positions
-// and lattice edges 20 bytes per vertex, triangles 12, cube records 20 per cube) + the
-// merge's state (18 bytes per vertex; per merged MC triangle its id and float area vector,
-// 16 bytes; 4 bytes per merged vertex; the disks' loops, and a 44-byte record per part for
-// step 3's fallback, its loop rebuilt only if it is needed; the block being tested, ~40 bytes
-// per corner of its triangles) + 31 bytes × the padded slice area (the extractor's buffers)
-// — flat in the number of slices (abdomen at 300 HU, 134 to 1,072 slices: 30.1–35.9 MiB
-// above the output mesh; see docs/benchmarks.md); with T threads up to T + 1 pieces exist.
-// The output is the same for every thread count; it depends on slab_layers, block_cubes,
-// blocks_follow_spacing and the grid's spacing
-// (no box crosses a seam: seams cost some reduction).
+// the vertices kept only, equal to marching cubes' (none with extract.vertex_normals false).
+// Peak ≈ the output mesh + per piece being made: its marching-cubes mesh and cube records
+// (about 50 bytes per MC triangle: positions and lattice edges 20 bytes per vertex, triangles
+// 12, cube records 20 per cube) + the merge's state (18 bytes per vertex; per merged MC
+// triangle its id and float area vector, 16 bytes; 4 bytes per merged vertex; the disks'
+// loops, and a 44-byte record per part for step 3's fallback, its loop rebuilt only if it is
+// needed; the block being tested, ~40 bytes per corner of its triangles) + 31 bytes × the
+// padded slice area (the extractor's buffers) — flat in the number of slices; with T threads
+// up to T + 1 pieces exist. The output is the same for every thread count; it depends on
+// slab_layers, block_cubes, blocks_follow_spacing and the grid's spacing (no box crosses a
+// seam: seams cost some reduction).
 #pragma once
 
 #include <array>

@@ -44,18 +44,18 @@ namespace detail {
 // Storage of at least kHugeBuffer bytes is aligned to 2 MiB and, on Linux, advised for
 // transparent huge pages (madvise(MADV_HUGEPAGE), what the kernel's default "madvise" mode
 // waits for): a volume of 4 KiB pages is faulted in 4 KiB at a time, 77 k faults for 300 MiB,
-// which perf showed as a tenth of a conversion's CPU (synthetic 512 × 512 × 300, the loader
-// writing the samples); with 2 MiB pages, 150. Smaller storage comes from operator new.
+// a visible share of a conversion's CPU; with 2 MiB pages, 150 (the perf figure:
+// docs/benchmarks.md, "Moved from headers and the README"). Smaller storage comes from
+// operator new.
 inline constexpr std::size_t kHugeBuffer = std::size_t{8} << 20;
 void* allocate_samples(std::size_t bytes);
 void deallocate_samples(void* p, std::size_t bytes) noexcept;
 }  // namespace detail
 
 // An allocator whose new elements are left uninitialised (default-initialised), not zeroed:
-// value-initialising a volume is a serial memset that also faults every page in on one thread
-// (abdomen: 140 MB, a third of the loader's time under perf), where the decoder threads
-// write every sample anyway and fault their own pages in parallel. Large storage is on huge
-// pages (detail::allocate_samples).
+// value-initialising a volume is a serial memset that also faults every page in on one thread,
+// where the decoder threads write every sample anyway and fault their own pages in parallel.
+// Large storage is on huge pages (detail::allocate_samples).
 template <typename T>
 struct DefaultInitAllocator : std::allocator<T> {
   using value_type = T;

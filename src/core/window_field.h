@@ -16,8 +16,7 @@ Volume window_field(const Volume& volume, float lo, float hi);
 
 // Whether [lo, hi] holds none, some or all of the samples, for "is this tissue there at all"
 // checks: a surface needs some inside and some outside. Answered as soon as one of each is
-// seen (usually within the first slice); counting the inside voxels instead read the whole
-// volume, 2 % of a bone conversion (perf, 78 M voxels).
+// seen (usually within the first slice), not by reading the whole volume.
 enum class WindowCover { none, some, all };
 WindowCover window_cover(const Volume& volume, float lo, float hi);
 

@@ -3,17 +3,13 @@
 // libraries:
 //  * OpenMesh's decimater (the default; decimate_with_openmesh, below): its guarantees hold by
 //    construction (link condition, every input vertex within max_error, no fold-over).
-//  * meshoptimizer (--decimator meshopt; mesh/meshopt_decimation.h): its simplifier takes
-//    0.5 s where OpenMesh takes 28 s (abdomen bone, mc, 911 k triangles), but its bound is a
-//    mean quadric error and it has no link-condition test, so its result is checked after and
-//    repaired by passes that keep the input around each problem; when that does not converge
-//    the input goes to OpenMesh (`fallback` says why).
-// Why OpenMesh stays the default (tests/mesh/mesh_bench.cpp --stl, abdomen bone mc): at
-// max_error 0.1 mm meshoptimizer's first pass has 1793 triangles on non-manifold edges or
-// vertices, 7 zero-area triangles and 6018 sampled points beyond the bound; after 4 passes 10
-// zero-area triangles and 1 far point are left, so it falls back, and the checks cost
-// 1.3 - 2.5 s a pass: no faster than OpenMesh alone. At --reduce-to 100000 without a bound
-// its first pass has 16518 triangles on non-manifold edges or vertices.
+//  * meshoptimizer (--decimator meshopt; mesh/meshopt_decimation.h): a much faster simplifier,
+//    but its bound is a mean quadric error and it has no link-condition test, so its result is
+//    checked after and repaired by passes that keep the input around each problem; when that
+//    does not converge the input goes to OpenMesh (`fallback` says why).
+// Why OpenMesh stays the default: on CT bone meshoptimizer's result keeps failing those checks
+// (triangles on non-manifold edges or vertices, zero-area triangles, points beyond the bound),
+// so it falls back, and its checks cost about as much as OpenMesh alone.
 //
 // OpenMesh's modules, in its terms:
 //  * ModQuadricT (priority, no bound): collapses the edge of least area-weighted quadric
@@ -32,8 +28,9 @@
 // per fan before decimating (see detail/openmesh_conversion.h) and stay split.
 //
 // Speed: OpenMesh's decimater is a single-threaded heap over half-edge collapses, and the
-// Hausdorff module re-measures the points of every affected face per candidate: about 28 s
-// for 911 k triangles of abdomen bone (tests/mesh/mesh_bench.cpp --stl prints both libraries).
+// Hausdorff module re-measures the points of every affected face per candidate, which makes it
+// a conversion's slowest step when asked for. Figures of both libraries: docs/benchmarks.md
+// ("Moved from headers and the README"); tests/mesh/mesh_bench.cpp --stl prints them.
 #pragma once
 
 #include <cstddef>

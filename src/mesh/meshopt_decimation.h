@@ -32,13 +32,13 @@
 //     largest must be <= max_error (else the next pass). Sampling the result at the input's
 //     resolution costs about as much as the vertex direction; sampling the input's triangles
 //     too, or denser, would cost more than the simplifier. Skipped for an infinite max_error;
-//  4. crossing pairs of the result (core::find_self_intersections, about 1 µs a triangle of
-//     the result, which is the smaller mesh): refused when it has more than the input (which
-//     is only counted when the result has any, since marching-cubes surfaces have none). Always
-//     on, not only with --check-intersections: a crossing makes the print fail, and on the
-//     reduced mesh the count costs a small part of the simplification.
-// Figures (abdomen bone, mc, and skin) are in the header of mesh/decimation.h and printed by
-// tests/mesh/mesh_bench.cpp --stl.
+//  4. crossing pairs of the result (core::find_self_intersections, about linear in its
+//     triangles, and the result is the smaller mesh): refused when it has more than the input
+//     (which is only counted when the result has any, since marching-cubes surfaces have
+//     none). Always on, not only with --check-intersections: a crossing makes the print fail,
+//     and on the reduced mesh the count costs a small part of the simplification.
+// Figures (abdomen bone, mc, and skin): docs/benchmarks.md ("Moved from headers and the
+// README"), printed by tests/mesh/mesh_bench.cpp --stl.
 #pragma once
 
 #include "core/mesh.h"
@@ -48,9 +48,9 @@ namespace typemerge::mesh {
 
 // Most meshopt_simplify passes (the first and three that keep the problems of the last).
 inline constexpr int kMaxMeshoptPasses = 4;
-// meshopt's target error is max_error times this: its error is a mean, and on abdomen bone
-// (mc, 911 k triangles, max_error 0.1 mm) the first pass leaves 39 k sampled points farther
-// than max_error at 1, 9 k at 0.5 and 6 k at 0.25.
+// meshopt's target error is max_error times this: its error is a mean, so a target of
+// max_error itself leaves many sampled points farther than max_error; a quarter of it leaves
+// far fewer for the repair passes (the counts are among the figures above).
 inline constexpr double kErrorFactor = 0.25;
 
 // Decimates `mesh` in place with meshoptimizer when every check above passes (report.fallback

@@ -1,8 +1,8 @@
-// The README's cluster recipes run as written (README "Clusters"): its GNU parallel lines, and
-// scripts/slurm/submit.sh and typemerge-array.sbatch on a real single-node Slurm that this test
-// starts and stops itself. The README lines are read from README.md and run with only the
-// paths (/archive/export, /data/meshes, scripts/) and the shard count replaced; typemerge is
-// found on PATH, as a user's would be.
+// The cluster recipes run as written (docs/cluster.md, linked from README "Clusters"): its GNU
+// parallel lines, and scripts/slurm/submit.sh and typemerge-array.sbatch on a real single-node
+// Slurm that this test starts and stops itself. The lines are read from docs/cluster.md and run
+// with only the paths (/archive/export, /data/meshes, scripts/) and the shard count replaced;
+// typemerge is found on PATH, as a user's would be.
 //
 // Slurm: munged, slurmctld and slurmd run as root in the foreground, children of this process
 // (PR_SET_PDEATHSIG: they die with it, even if ctest kills it), with their key, sockets,
@@ -102,9 +102,10 @@ std::string with_typemerge_on_path() {
   return "PATH=" + fs::path(TYPEMERGE_EXE).parent_path().string() + ":$PATH";
 }
 
-// The README line that starts with `prefix`, with the example paths replaced.
+// The line of docs/cluster.md that starts with `prefix`, with the example paths replaced.
 std::string readme_line(const std::string& prefix, const fs::path& root, const fs::path& out) {
-  std::istringstream readme(read_file_bytes(fs::path(TYPEMERGE_SOURCE_DIR) / "README.md"));
+  std::istringstream readme(
+      read_file_bytes(fs::path(TYPEMERGE_SOURCE_DIR) / "docs" / "cluster.md"));
   for (std::string line; std::getline(readme, line);) {
     if (line.rfind(prefix, 0) != 0) continue;
     for (const auto& [from, to] : std::vector<std::pair<std::string, std::string>>{
@@ -119,7 +120,7 @@ std::string readme_line(const std::string& prefix, const fs::path& root, const f
     }
     return line;
   }
-  ADD_FAILURE() << "README.md has no line starting with: " << prefix;
+  ADD_FAILURE() << "docs/cluster.md has no line starting with: " << prefix;
   return "false";
 }
 
