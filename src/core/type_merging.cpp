@@ -145,10 +145,12 @@ std::vector<std::int64_t> piece_bounds(const Volume& volume, float iso, const Ex
 
 TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractOptions& extract,
                                   const MergeOptions& options, MergeStats* stats) {
-  if (options.block_cubes < 2 || !std::has_single_bit(options.block_cubes) ||
-      !(options.epsilon_voxels >= 0.0)) {
+  if (options.block_cubes < 2 || options.block_cubes > 32 ||
+      !std::has_single_bit(options.block_cubes) || !(options.epsilon_voxels >= 0.0) ||
+      !(options.epsilon_mm >= 0.0) || !std::isfinite(options.epsilon_mm)) {
     throw std::invalid_argument(
-        "type merging: block_cubes must be a power of two >= 2 and epsilon_voxels >= 0");
+        "type merging: block_cubes must be a power of two from 2 to 32, epsilon_voxels >= 0 and "
+        "epsilon_mm finite and >= 0");
   }
   // A block's loop is found as its edges on the block's faces, which holds only where every
   // other edge has a triangle on each side: classic mode's holes break that.

@@ -107,8 +107,13 @@ struct MergeOptions {
   // slices): the Hausdorff distance between the merged and the marching-cubes surface is at
   // most this.
   double epsilon_voxels = 0.5;
-  // Largest block edge in cubes (a power of two >= 2). Larger blocks rarely pass on CT (few
-  // 16-blocks are flat within half a voxel) and cost a test each.
+  // When > 0: the bound in millimetres of patient space instead (epsilon_voxels is then
+  // ignored): the two-sided Hausdorff distance between the merged and the marching-cubes
+  // surface, over the whole surfaces, is at most this (merge/tolerance.h).
+  double epsilon_mm = 0.0;
+  // Largest block edge in cubes (a power of two >= 2, at most 32). Larger blocks rarely pass
+  // on CT within half a voxel (few 16-blocks are that flat) and cost a test each; larger
+  // bounds let larger blocks pass.
   unsigned block_cubes = 8;
   // Blocks shaped by the grid's spacing (step 1 above); false: cubes of block_cubes halved
   // along every axis at once, whatever the spacing.
@@ -153,7 +158,7 @@ struct MergeStats {
 // `extract.cubes` is ignored; `extract.stats` receives the ambiguity counts. Runs on the
 // larger of options.threads and extract.threads; the output does not depend on it.
 // Throws std::invalid_argument unless block_cubes is a power of two >= 2, epsilon_voxels
-// >= 0 and extract.mode is consistent (classic mode's holes are not loops on box faces).
+// >= 0, epsilon_mm finite and >= 0, and extract.mode is consistent (classic mode's holes are not loops on box faces).
 TriangleMesh extract_type_merged(const Volume& volume, float iso,
                                   const ExtractOptions& extract = {},
                                   const MergeOptions& options = {},

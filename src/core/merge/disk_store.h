@@ -20,7 +20,7 @@ struct MergedDisk {
   Box box;
   P3 normal;
   P3 area{0, 0, 0};   // the sum of its triangles' area vectors
-  double band = 0.0;  // thickness of the slab it lies in
+  double band = 0.0;  // what the slab it lies in spans, in the tolerance's units (tolerance.h)
   std::uint32_t loop_first = 0;
   std::uint32_t loop_size = 0;
   std::uint32_t triangles_first = 0;

@@ -118,7 +118,8 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
     c.high = std::max(c.high, h);
   }
   for (Component& c : components_) {
-    if (c.verdict == DiskVerdict::kDisk && c.high - c.low > epsilon_) {
+    if (c.verdict == DiskVerdict::kDisk &&
+        tolerance_.span(c.high - c.low, c.normal) > tolerance_.epsilon()) {
       c.verdict = DiskVerdict::kFlatness;
       ++stats.rejected_flatness;
     }
@@ -176,7 +177,7 @@ void DiskTest::record(const Box& box, std::int32_t size, DiskStore& store,
     disk.box = box;
     disk.normal = c.normal;
     disk.area = c.area;
-    disk.band = c.high - c.low;
+    disk.band = tolerance_.span(c.high - c.low, c.normal);
     disk.loop_first = static_cast<std::uint32_t>(store.loops.size());
     disk.loop_size = static_cast<std::uint32_t>(c.loop_edges);
     disk.face_count = static_cast<std::uint32_t>(c.faces);
@@ -290,7 +291,7 @@ bool DiskTest::test_parts(const DiskStore& store, std::size_t first_part, const 
     }
   }
   for (const Component& c : components_) {
-    if (c.high - c.low > epsilon_) {
+    if (tolerance_.span(c.high - c.low, c.normal) > tolerance_.epsilon()) {
       ++stats.rejected_flatness;
       return false;
     }
@@ -341,7 +342,7 @@ bool DiskTest::test_parts(const DiskStore& store, std::size_t first_part, const 
     disk.box = box;
     disk.normal = c.normal;
     disk.area = c.area;
-    disk.band = c.high - c.low;
+    disk.band = tolerance_.span(c.high - c.low, c.normal);
     disk.loop_first = c.loop_first;
     disk.loop_size = static_cast<std::uint32_t>(c.loop_edges);
     disk.triangles_first = static_cast<std::uint32_t>(out.triangles.size());

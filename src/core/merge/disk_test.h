@@ -7,7 +7,8 @@
 //    side), at least three of them, closing into one cycle;
 //  * faces one way (kFacing): every triangle's area vector has a positive component along the
 //    disk's mean normal n (the normalised sum of its area vectors);
-//  * is flat (kFlatness): its vertices lie in a slab n·p ∈ [t, t + w] with w ≤ ε;
+//  * is flat (kFlatness): its vertices lie in a slab n·p ∈ [t, t + w] that spans no more than
+//    ε (tolerance.h: w ≤ ε in voxels, w·|A n| ≤ ε in millimetres);
 //  * is separated from every other component of the box by its slab (kSeparation): all of
 //    each other's vertices on one side of it, so their convex hulls do not meet;
 //  * has a simple outline (kOutline): its loop projected along n is simple and
@@ -35,6 +36,7 @@
 #include "core/merge/geometry.h"
 #include "core/merge/local_table.h"
 #include "core/merge/loop_triangulation.h"
+#include "core/merge/tolerance.h"
 #include "core/type_merging.h"
 
 namespace typemerge::core::merge {
@@ -82,13 +84,13 @@ struct ComposedBlock {
 
 class DiskTest {
  public:
-  // For the piece's marching-cubes surface (positions in index space, triangles), slabs no
-  // thicker than epsilon; `table` and `outline` are scratch shared with other steps.
+  // For the piece's marching-cubes surface (positions in index space, triangles), slabs that
+  // span no more than the tolerance; `table` and `outline` are scratch shared with other steps.
   DiskTest(std::span<const Position> positions, std::span<const Triangle> triangles,
-           double epsilon, LocalTable& table, LoopTriangulator& outline)
+           const Tolerance& tolerance, LocalTable& table, LoopTriangulator& outline)
       : positions_(positions),
         triangles_(triangles),
-        epsilon_(epsilon),
+        tolerance_(tolerance),
         table_(table),
         outline_(outline) {}
 
@@ -120,7 +122,7 @@ class DiskTest {
 
   std::span<const Position> positions_;
   std::span<const Triangle> triangles_;
-  double epsilon_;
+  Tolerance tolerance_;
   LocalTable& table_;
   LoopTriangulator& outline_;
   std::span<const TriangleRun> runs_;  // of the last test_triangles

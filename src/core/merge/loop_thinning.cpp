@@ -74,8 +74,8 @@ std::size_t thin_polyline(std::span<const Position> positions, std::span<const V
 }
 
 void thin_shared_faces(std::span<const Position> positions, const DiskStore& store,
-                       const LoopOwners& owners, double epsilon, std::vector<std::uint8_t>& state,
-                       MergeStats& stats) {
+                       const LoopOwners& owners, const Tolerance& tolerance,
+                       std::vector<std::uint8_t>& state, MergeStats& stats) {
   std::vector<std::uint32_t> partners;
   std::vector<VertexId> run;
   for (std::uint32_t id = 0; id < store.disks.size(); ++id) {
@@ -107,10 +107,9 @@ void thin_shared_faces(std::span<const Position> positions, const DiskStore& sto
         for (std::size_t r = 1; r < run.size(); ++r) state[run[r]] = kKept;
       } else {
         run.push_back(loop[end]);
-        // The header's bound: sqrt(tolerance² + band²) <= epsilon.
-        const double band = std::max(disk.band, store.disks[other].band);
-        const double tolerance = std::sqrt(std::max(0.0, epsilon * epsilon - band * band));
-        stats.face_vertices_removed += thin_polyline(positions, run, tolerance, state);
+        // The header's bound.
+        const double offset = tolerance.thinning_tolerance(disk.band, store.disks[other].band);
+        stats.face_vertices_removed += thin_polyline(positions, run, offset, state);
         for (std::size_t r = 1; r + 1 < run.size(); ++r) {
           if (state[run[r]] == kOpen) state[run[r]] = kKept;
         }

@@ -5,7 +5,8 @@
 // that replaces a thinned polyline lies within δ of it both ways in the face (Douglas–Peucker
 // with tolerance δ; the polyline joins the chord's ends in the plane of the face), so a point
 // of either disk and the nearest point of its replacement differ by at most δ across and band
-// along the normal: with δ = sqrt(ε² − band²), within ε. A shortcut never runs along a lattice
+// along the normal: with δ = sqrt(ε² − band²) in voxels, within ε (in millimetres, where the
+// two need not stay orthogonal, δ = (ε − band) / σ: tolerance.h). A shortcut never runs along a lattice
 // line (a box edge or a cube edge, which other boxes share: it could duplicate their edge),
 // and the two disks drop the same vertices, so the face's polyline stays one edge chain that
 // both sides use.
@@ -18,6 +19,7 @@
 
 #include "core/merge/disk_store.h"
 #include "core/merge/geometry.h"
+#include "core/merge/tolerance.h"
 #include "core/type_merging.h"
 
 namespace typemerge::core::merge {
@@ -56,7 +58,7 @@ std::size_t thin_polyline(std::span<const Position> positions, std::span<const V
 // runs of one partner between vertices that stay; writes kRemoved / kKept into `state` (one
 // per piece vertex, kOpen before) and counts stats.face_vertices_removed.
 void thin_shared_faces(std::span<const Position> positions, const DiskStore& store,
-                       const LoopOwners& owners, double epsilon, std::vector<std::uint8_t>& state,
-                       MergeStats& stats);
+                       const LoopOwners& owners, const Tolerance& tolerance,
+                       std::vector<std::uint8_t>& state, MergeStats& stats);
 
 }  // namespace typemerge::core::merge

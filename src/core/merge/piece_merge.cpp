@@ -11,6 +11,7 @@
 #include "core/merge/local_table.h"
 #include "core/merge/loop_thinning.h"
 #include "core/merge/loop_triangulation.h"
+#include "core/merge/tolerance.h"
 
 namespace typemerge::core::merge {
 namespace {
@@ -30,12 +31,15 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
   std::vector<Triangle> out;
   out.reserve(piece.mesh.triangles.size() / 2);
 
-  DiskTest test(positions, piece.mesh.triangles, options.epsilon_voxels, table, triangulator);
+  const Tolerance tolerance = options.epsilon_mm > 0.0
+                                  ? Tolerance::in_mm(options.epsilon_mm, geometry.axes)
+                                  : Tolerance::in_voxels(options.epsilon_voxels);
+  DiskTest test(positions, piece.mesh.triangles, tolerance, table, triangulator);
   test_blocks(piece, lattice, block_dims(geometry, options), spacing, test, store, out, stats);
 
   std::vector<std::uint8_t> state(positions.size(), kOpen);
   const LoopOwners owners(positions, store);
-  thin_shared_faces(positions, store, owners, options.epsilon_voxels, state, stats);
+  thin_shared_faces(positions, store, owners, tolerance, state, stats);
 
   triangulate_disks(piece, geometry.axes, owners, store, state, table, triangulator, out, stats);
   return out;

@@ -34,7 +34,7 @@ struct Surface {
   Result test(const Box& box, double epsilon) const {
     LocalTable table(positions);
     LoopTriangulator outline({{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}});
-    DiskTest disk_test(positions, triangles, epsilon, table, outline);
+    DiskTest disk_test(positions, triangles, Tolerance::in_voxels(epsilon), table, outline);
     const std::vector<TriangleRun> runs{{0, static_cast<std::uint32_t>(triangles.size())}};
     Result r;
     r.all = disk_test.test_triangles(runs, box, r.stats);

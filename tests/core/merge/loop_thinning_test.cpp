@@ -122,7 +122,7 @@ TEST(LoopThinning, SharedFaceBetweenTwoDisksIsThinnedWithinEpsilon) {
   EXPECT_EQ(owners.partner(7, 0), kNone);  // on the left disk's loop only
   std::vector<std::uint8_t> state(positions.size(), kOpen);
   MergeStats stats;
-  thin_shared_faces(positions, store, owners, 0.1, state, stats);
+  thin_shared_faces(positions, store, owners, Tolerance::in_voxels(0.1), state, stats);
   // Within 0.1 all five inner
   // vertices go (both disks drop the same ones: the state is per vertex).
   EXPECT_EQ(stats.face_vertices_removed, 5u);
@@ -133,7 +133,7 @@ TEST(LoopThinning, SharedFaceBetweenTwoDisksIsThinnedWithinEpsilon) {
   store.disks[1].band = 0.099;
   state.assign(positions.size(), kOpen);
   MergeStats tight;
-  thin_shared_faces(positions, store, owners, 0.1, state, tight);
+  thin_shared_faces(positions, store, owners, Tolerance::in_voxels(0.1), state, tight);
   EXPECT_LT(tight.face_vertices_removed, 5u);
 }
 
