@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "ct_writer/ct_writer.h"
+#include "support/volume_file_writers.h"
 
 namespace {
 
@@ -121,6 +122,63 @@ void extract_seeds(const fs::path& folder) {
   }
 }
 
+// NIfTI-1 and -2, both byte orders, a few types, each geometry source, one gzip.
+void nifti_seeds(const fs::path& folder) {
+  namespace t = typemerge::test;
+  t::NiftiSpec spec;
+  spec.dim = {3, 3, 2, 2, 1, 1, 1, 1};
+  for (int v = 0; v < 12; ++v) spec.values.push_back(v % 3);
+  int n = 0;
+  for (int version : {1, 2}) {
+    for (int type : {t::kDtUint8, t::kDtInt16, t::kDtFloat32, t::kDtFloat64}) {
+      spec.version = version;
+      spec.datatype = type;
+      spec.big_endian = (n % 2) == 1;
+      spec.sform_code = n % 3 == 0 ? 1 : 0;
+      spec.qform_code = n % 3 == 1 ? 1 : 0;
+      spec.quatern = {0.1, 0.2, 0.3};
+      write_bytes(folder / ("nifti_" + std::to_string(n++) + ".nii"), t::nifti_bytes(spec));
+    }
+  }
+  spec.version = 1;
+  write_bytes(folder / "nifti_gz.nii.gz", t::gzip_bytes(t::nifti_bytes(spec)));
+}
+
+// Raw and gzip, a Slicer layered segmentation with its keys, a spacings-only file.
+void nrrd_seeds(const fs::path& folder) {
+  namespace t = typemerge::test;
+  std::vector<double> values;
+  for (int v = 0; v < 24; ++v) values.push_back(v % 4);
+  const std::string geometry =
+      "dimension: 3\nsizes: 4 3 2\nspace: left-posterior-superior\n"
+      "space directions: (0.5,0,0) (0,0.5,0) (0,0,2)\nspace origin: (1,2,3)\n";
+  write_bytes(folder / "raw.nrrd", t::nrrd_bytes("type: short\n" + geometry +
+                                                     "endian: little\nencoding: raw\n",
+                                                 t::raw_samples<std::int16_t>(values), false));
+  write_bytes(folder / "gzip.nrrd", t::nrrd_bytes("type: float\n" + geometry +
+                                                      "endian: big\nencoding: gzip\n",
+                                                  t::raw_samples<float>(values, true), true));
+  write_bytes(folder / "spacings.nrrd",
+              t::nrrd_bytes("type: uchar\ndimension: 3\nsizes: 4 3 2\nspacings: 1 1 2\n"
+                            "encoding: raw\n",
+                            t::raw_samples<std::uint8_t>(values), false));
+  std::vector<double> layered;
+  for (double v : values) {
+    layered.push_back(v == 1 ? 1 : 0);
+    layered.push_back(v >= 2 ? v - 1 : 0);
+  }
+  write_bytes(folder / "layered.seg.nrrd",
+              t::nrrd_bytes("type: uchar\ndimension: 4\nsizes: 2 4 3 2\n"
+                            "kinds: list domain domain domain\nspace: RAS\n"
+                            "space directions: none (1,0,0) (0,1,0) (0,0,1)\n"
+                            "space origin: (0,0,0)\nencoding: gzip\n"
+                            "Segment0_Name:=a\nSegment0_Color:=1 0 0\n"
+                            "Segment0_LabelValue:=1\nSegment0_Layer:=0\n"
+                            "Segment1_Name:=b\nSegment1_LabelValue:=1\nSegment1_Layer:=1\n"
+                            "Segment2_Name:=c\nSegment2_LabelValue:=2\nSegment2_Layer:=1\n",
+                            t::raw_samples<std::uint8_t>(layered), true));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -129,11 +187,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path out = argv[1];
-  for (const char* name : {"dicom_file", "series_geometry", "extract"}) {
+  for (const char* name : {"dicom_file", "series_geometry", "extract", "nifti", "nrrd"}) {
     fs::create_directories(out / name);
   }
   dicom_seeds(out / "dicom_file");
   geometry_seeds(out / "series_geometry");
   extract_seeds(out / "extract");
+  nifti_seeds(out / "nifti");
+  nrrd_seeds(out / "nrrd");
   return 0;
 }

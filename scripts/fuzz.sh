@@ -20,13 +20,20 @@ fi
 
 CC=clang CXX=clang++ cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DTYPEMERGE_BUILD_FUZZERS=ON -DTYPEMERGE_BUILD_TESTS=OFF >/dev/null
-targets=(fuzz_dicom_file fuzz_series_geometry fuzz_extract)
+targets=(fuzz_dicom_file fuzz_series_geometry fuzz_extract fuzz_nifti fuzz_nrrd)
 cmake --build "$build" --parallel "$jobs" --target "${targets[@]}" make_seed_corpus
 
 corpus="$build/corpus"
 findings="$build/findings"
 mkdir -p "$corpus" "$findings"
 ASAN_OPTIONS=detect_leaks=1 "$build/fuzz/make_seed_corpus" "$corpus"
+# The shared real files, when present, seed the NIfTI and NRRD readers too (copied into the
+# build's corpus, never into the project).
+shared="${TYPEMERGE_DATA:-$here/../shared/data}"
+for f in "$shared"/nifti/*.nii.gz; do [ -f "$f" ] && cp "$f" "$corpus/nifti/"; done
+for f in "$shared"/seg/dcmqi/*.nrrd "$shared"/seg/dcmqi/*/nrrd/*.nrrd; do
+  [ -f "$f" ] && cp "$f" "$corpus/nrrd/shared_$(basename "$(dirname "$f")")_$(basename "$f")"
+done
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:allocator_may_return_null=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
