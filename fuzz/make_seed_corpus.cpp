@@ -5,6 +5,7 @@
 //                            few broken variants (truncated, no pixel data, bad geometry);
 //   OUT_DIR/series_geometry/ byte strings decoding to regular, gapped and tilted stacks;
 //   OUT_DIR/extract/         byte strings decoding to a ball, a saddle and a checkerboard.
+#include <array>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -12,7 +13,10 @@
 #include <string>
 #include <vector>
 
+#include <zip.h>
+
 #include "ct_writer/ct_writer.h"
+#include "seg/seg_writer.h"
 #include "support/volume_file_writers.h"
 
 namespace {
@@ -179,6 +183,52 @@ void nrrd_seeds(const fs::path& folder) {
                             t::raw_samples<std::uint8_t>(layered), true));
 }
 
+// Binary and fractional SEGs: overlapping segments, shuffled frames, a gap, colours.
+void seg_seeds(const fs::path& folder) {
+  namespace t = typemerge::test;
+  t::SynthSeg spec;
+  spec.segments = {{"a", std::array<std::uint16_t, 3>{41661, 41167, 40792}}, {"b", std::nullopt}};
+  spec.frames.push_back({1, {0, 0, 4}, t::box_pixels(spec, 0, 1, 0, 2)});
+  spec.frames.push_back({1, {0, 0, 0}, t::box_pixels(spec, 1, 2, 1, 3)});
+  spec.frames.push_back({2, {0, 0, 2}, t::box_pixels(spec, 0, 3, 0, 5)});
+  t::write_seg(spec, folder / "binary.dcm");
+  spec.spacing_between_slices = 2.0;
+  spec.orientation = {0, 1, 0, 0, 0, -1};
+  t::write_seg(spec, folder / "sagittal.dcm");
+  spec.fractional = true;
+  spec.max_fractional_value = 100;
+  for (auto& frame : spec.frames) {
+    for (auto& v : frame.pixels) v = static_cast<std::uint8_t>(v * 70);
+  }
+  t::write_seg(spec, folder / "fractional.dcm");
+}
+
+// Small archives: two DICOM slices (one stored, one deflated) in folders, and an empty one.
+void zip_seeds(const fs::path& folder) {
+  ctw::CtSliceSpec spec;
+  spec.rows = 4;
+  spec.columns = 4;
+  spec.pixels.assign(16, 100);
+  const fs::path slice = folder / "slice.tmp";
+  ctw::write_ct_slice(spec, slice);
+  int code = 0;
+  zip_t* archive = zip_open((folder / "two.zip").c_str(), ZIP_CREATE | ZIP_TRUNCATE, &code);
+  for (const char* name : {"study/a.dcm", "study/b.dcm"}) {
+    zip_source_t* source = zip_source_file(archive, slice.c_str(), 0, -1);
+    const zip_int64_t index = zip_file_add(archive, name, source, ZIP_FL_OVERWRITE);
+    if (name[6] == 'a') {
+      zip_set_file_compression(archive, static_cast<zip_uint64_t>(index), ZIP_CM_STORE, 0);
+    }
+  }
+  zip_dir_add(archive, "study/", 0);
+  zip_close(archive);
+  fs::remove(slice);
+  archive = zip_open((folder / "empty.zip").c_str(), ZIP_CREATE | ZIP_TRUNCATE, &code);
+  zip_source_t* source = zip_source_buffer(archive, "x", 1, 0);
+  zip_file_add(archive, "x", source, 0);
+  zip_close(archive);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -187,7 +237,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   const fs::path out = argv[1];
-  for (const char* name : {"dicom_file", "series_geometry", "extract", "nifti", "nrrd"}) {
+  for (const char* name :
+       {"dicom_file", "series_geometry", "extract", "nifti", "nrrd", "seg", "zip"}) {
     fs::create_directories(out / name);
   }
   dicom_seeds(out / "dicom_file");
@@ -195,5 +246,7 @@ int main(int argc, char** argv) {
   extract_seeds(out / "extract");
   nifti_seeds(out / "nifti");
   nrrd_seeds(out / "nrrd");
+  seg_seeds(out / "seg");
+  zip_seeds(out / "zip");
   return 0;
 }

@@ -20,7 +20,7 @@ fi
 
 CC=clang CXX=clang++ cmake -S "$here" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DTYPEMERGE_BUILD_FUZZERS=ON -DTYPEMERGE_BUILD_TESTS=OFF >/dev/null
-targets=(fuzz_dicom_file fuzz_series_geometry fuzz_extract fuzz_nifti fuzz_nrrd)
+targets=(fuzz_dicom_file fuzz_series_geometry fuzz_extract fuzz_nifti fuzz_nrrd fuzz_seg fuzz_zip)
 cmake --build "$build" --parallel "$jobs" --target "${targets[@]}" make_seed_corpus
 
 corpus="$build/corpus"
@@ -33,6 +33,10 @@ shared="${TYPEMERGE_DATA:-$here/../shared/data}"
 for f in "$shared"/nifti/*.nii.gz; do [ -f "$f" ] && cp "$f" "$corpus/nifti/"; done
 for f in "$shared"/seg/dcmqi/*.nrrd "$shared"/seg/dcmqi/*/nrrd/*.nrrd; do
   [ -f "$f" ] && cp "$f" "$corpus/nrrd/shared_$(basename "$(dirname "$f")")_$(basename "$f")"
+done
+for f in "$shared"/seg/dcmqi/*.dcm "$shared"/seg/dcmqi/*/seg/*.seg; do
+  rel="${f#"$shared"/seg/}"
+  [ -f "$f" ] && install -m 644 "$f" "$corpus/seg/shared_${rel//\//_}"
 done
 
 export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:allocator_may_return_null=1"
