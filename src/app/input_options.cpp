@@ -2,7 +2,10 @@
 
 #include <CLI/CLI.hpp>
 
+#include <map>
+
 #include "app/exit_codes.h"
+#include "zip_input/zip_extract.h"
 
 namespace typemerge::app {
 
@@ -57,9 +60,37 @@ const dicom::SeriesInfo& select_series(const dicom::FolderScan& scan,
   return scan.series[*scan.default_series];
 }
 
+namespace {
+
+// A ZIP archive of DICOM files is scanned as the private folder its entries are extracted to
+// (zip_input/zip_extract.h), kept until the process ends and then removed; anything else as
+// it is.
+const zip_input::ExtractedZip* extracted_zip(const std::string& input) {
+  if (!zip_input::is_zip_file(input)) return nullptr;
+  static std::map<std::string, zip_input::ExtractedZip> extracted;
+  auto found = extracted.find(input);
+  if (found == extracted.end()) {
+    try {
+      found = extracted.emplace(input, zip_input::extract_zip(input)).first;
+    } catch (const zip_input::ZipError& error) {
+      throw CommandError{kExitInputRefused, error.what()};
+    }
+  }
+  return &found->second;
+}
+
+}  // namespace
+
 dicom::FolderScan scan_input(const InputOptions& options) {
+  const zip_input::ExtractedZip* zip = extracted_zip(options.input);
   try {
-    return dicom::scan_folder(options.input, options.scan_options());
+    dicom::FolderScan scan =
+        dicom::scan_folder(zip != nullptr ? zip->folder() : std::filesystem::path(options.input),
+                           options.scan_options());
+    if (zip != nullptr) {
+      scan.warnings.insert(scan.warnings.end(), zip->warnings.begin(), zip->warnings.end());
+    }
+    return scan;
   } catch (const std::runtime_error& error) {
     throw CommandError{kExitInputRefused, error.what()};
   }
