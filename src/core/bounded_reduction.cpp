@@ -1,0 +1,85 @@
+#include "core/bounded_reduction.h"
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <stdexcept>
+#include <utility>
+
+namespace typemerge::core {
+
+namespace {
+
+constexpr std::size_t kMaxTries = 24;
+
+struct Try {
+  double bound = 0.0;
+  TriangleMesh mesh;
+  MergeStats stats;
+};
+
+}  // namespace
+
+ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
+                                             const ExtractOptions& extract,
+                                             const MergeOptions& options, std::size_t target,
+                                             double cap_mm) {
+  if (target == 0 || !(cap_mm > 0.0) || !std::isfinite(cap_mm)) {
+    throw std::invalid_argument("reduction: the target must be positive and the cap finite and > 0");
+  }
+  const auto low_enough = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(target)));
+  ReductionResult result;
+  auto run = [&](double bound) {
+    MergeOptions at = options;
+    at.epsilon_mm = bound;
+    Try t;
+    t.bound = bound;
+    t.mesh = extract_type_merged(volume, iso, extract, at, &t.stats);
+    ++result.tries;
+    return t;
+  };
+  auto finish = [&](Try&& t) {
+    result.bound_mm = t.bound;
+    result.target_met = t.mesh.triangles.size() <= target && t.mesh.triangles.size() >= low_enough;
+    result.mesh = std::move(t.mesh);
+    result.stats = t.stats;
+    return std::move(result);
+  };
+
+  Try at_cap = run(cap_mm);
+  if (at_cap.mesh.triangles.size() <= target && at_cap.mesh.triangles.size() >= low_enough) {
+    // Within the window already; a smaller bound may be too: keep searching below.
+  } else if (at_cap.mesh.triangles.size() > target) {
+    return finish(std::move(at_cap));
+  }
+  // Bracket: `few` leaves at most target (the smallest such bound so far), `many` more.
+  std::optional<Try> few = std::move(at_cap);
+  double many = 0.0;  // a bound known to leave more than target (0: the merge at 0 is no better)
+  double low = std::min(cap_mm, 0.01);
+  // Start from a bound near where CT merges begin to pay (a tenth of the cap), then bisect in
+  // log(bound) between `many` (or `low`) and `few`.
+  double next = cap_mm / 10.0;
+  while (result.tries < kMaxTries) {
+    Try t = run(next);
+    const std::size_t n = t.mesh.triangles.size();
+    if (n <= target) {
+      const bool in_window = n >= low_enough;
+      if (t.bound < few->bound) few = std::move(t);
+      if (in_window) {
+        // The smallest bound in the window is not needed: any bound in it meets the target;
+        // keep the smaller one found and stop.
+        break;
+      }
+    } else {
+      many = std::max(many, t.bound);
+    }
+    const double lo = many > 0.0 ? many : low;
+    const double hi = few->bound;
+    if (hi / lo < 1.0 + 1e-3) break;  // the bracket is closed: no bound in between
+    next = std::sqrt(lo * hi);
+    if (many == 0.0 && lo == low && next <= low * 1.0001) break;
+  }
+  return finish(std::move(*few));
+}
+
+}  // namespace typemerge::core

@@ -1,0 +1,96 @@
+// extract_type_merged_to_count (core/bounded_reduction.h): the count window, the bound the
+// surface keeps, and the cap.
+#include "core/bounded_reduction.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <stdexcept>
+
+#include "core/mesh_checks.h"
+#include "core/mesh_distance.h"
+#include "core/self_intersections.h"
+#include "test_volumes.h"
+
+namespace typemerge::core {
+namespace {
+
+// Gaussian blobs on 0.8 × 0.8 × 2 mm voxels.
+Volume blobs() {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(4.0, 28.0);
+  std::array<std::array<double, 3>, 7> centres{};
+  for (auto& c : centres) c = {u(rng), u(rng), u(rng)};
+  Volume volume = test::sample_volume(32, 32, 32, [&](double x, double y, double z) {
+    double f = 0.0;
+    for (const auto& c : centres) {
+      f += std::exp(-((x - c[0]) * (x - c[0]) + (y - c[1]) * (y - c[1]) + (z - c[2]) * (z - c[2])) /
+                    20.0);
+    }
+    return f - 0.4;
+  });
+  IndexToPatient geometry;
+  geometry.axes = {{{0.8, 0, 0}, {0, 0.8, 0}, {0, 0, 2.0}}};
+  volume.set_geometry(geometry);
+  return volume;
+}
+
+ExtractOptions one_thread() {
+  ExtractOptions extract;
+  extract.threads = 1;
+  extract.vertex_normals = false;
+  return extract;
+}
+
+TEST(BoundedReduction, MeetsTheCountWithinItsBound) {
+  const Volume volume = blobs();
+  const TriangleMesh mc_index = extract_isosurface(volume, 0.0f, one_thread());
+  for (const double share : {0.5, 0.3}) {
+    SCOPED_TRACE(share);
+    const auto target = static_cast<std::size_t>(share * double(mc_index.triangles.size()));
+    const ReductionResult r =
+        extract_type_merged_to_count(volume, 0.0f, one_thread(), {}, target, 8.0);
+    EXPECT_TRUE(r.target_met) << r.mesh.triangles.size() << " for " << target;
+    EXPECT_LE(r.mesh.triangles.size(), target);
+    EXPECT_GE(double(r.mesh.triangles.size()), 0.99 * double(target));
+    EXPECT_GT(r.bound_mm, 0.0);
+    EXPECT_LE(r.bound_mm, 8.0);
+    EXPECT_LE(r.tries, 24u);
+    TriangleMesh mc = mc_index;
+    TriangleMesh tm = r.mesh;
+    to_patient(mc, volume.geometry());
+    to_patient(tm, volume.geometry());
+    EXPECT_LE(surface_distance(mc, tm, 0.3, 1).hausdorff(), r.bound_mm + 1e-3);
+    const MeshCheck a = check_mesh(mc);
+    const MeshCheck b = check_mesh(tm);
+    EXPECT_TRUE(b.closed_manifold());
+    EXPECT_EQ(a.euler_characteristic, b.euler_characteristic);
+    EXPECT_EQ(a.components, b.components);
+    EXPECT_TRUE(find_self_intersections(tm).pairs.empty());
+  }
+}
+
+TEST(BoundedReduction, ACountOutOfReachReturnsTheCapsSurface) {
+  const Volume volume = blobs();
+  const ReductionResult r = extract_type_merged_to_count(volume, 0.0f, one_thread(), {}, 10, 1.0);
+  EXPECT_FALSE(r.target_met);
+  EXPECT_EQ(r.bound_mm, 1.0);
+  EXPECT_EQ(r.tries, 1u);
+  MergeOptions at_cap;
+  at_cap.epsilon_mm = 1.0;
+  EXPECT_EQ(r.mesh.triangles, extract_type_merged(volume, 0.0f, one_thread(), at_cap).triangles);
+}
+
+TEST(BoundedReduction, RejectsBadArguments) {
+  const Volume volume = blobs();
+  EXPECT_THROW(extract_type_merged_to_count(volume, 0.0f, one_thread(), {}, 0, 1.0),
+               std::invalid_argument);
+  EXPECT_THROW(extract_type_merged_to_count(volume, 0.0f, one_thread(), {}, 100, 0.0),
+               std::invalid_argument);
+  EXPECT_THROW(extract_type_merged_to_count(volume, 0.0f, one_thread(), {}, 100, NAN),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace typemerge::core
