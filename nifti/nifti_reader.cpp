@@ -34,17 +34,28 @@ std::int32_t swapped(std::int32_t v) {
 
 SampleType sample_type(int datatype) {
   switch (datatype) {
-    case DT_INT8: return SampleType::int8;
-    case DT_UINT8: return SampleType::uint8;
-    case DT_INT16: return SampleType::int16;
-    case DT_UINT16: return SampleType::uint16;
-    case DT_INT32: return SampleType::int32;
-    case DT_UINT32: return SampleType::uint32;
-    case DT_INT64: return SampleType::int64;
-    case DT_UINT64: return SampleType::uint64;
-    case DT_FLOAT32: return SampleType::float32;
-    case DT_FLOAT64: return SampleType::float64;
-    default: break;
+    case DT_INT8:
+      return SampleType::int8;
+    case DT_UINT8:
+      return SampleType::uint8;
+    case DT_INT16:
+      return SampleType::int16;
+    case DT_UINT16:
+      return SampleType::uint16;
+    case DT_INT32:
+      return SampleType::int32;
+    case DT_UINT32:
+      return SampleType::uint32;
+    case DT_INT64:
+      return SampleType::int64;
+    case DT_UINT64:
+      return SampleType::uint64;
+    case DT_FLOAT32:
+      return SampleType::float32;
+    case DT_FLOAT64:
+      return SampleType::float64;
+    default:
+      break;
   }
   throw ReadError("NIfTI data type " + std::to_string(datatype) +
                   " is not supported (integer and real types are; complex, RGB and "
@@ -188,7 +199,8 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
   for (int d = 1; d <= std::min<std::int64_t>(ndim, 3); ++d) extent[d - 1] = f.dim[d];
   std::int64_t more = 1;
   for (int d = 4; d <= ndim; ++d) {
-    if (__builtin_mul_overflow(more, f.dim[d], &more)) more = std::numeric_limits<std::int64_t>::max();
+    if (__builtin_mul_overflow(more, f.dim[d], &more))
+      more = std::numeric_limits<std::int64_t>::max();
   }
   if (more > 1) {
     throw ReadError("a 4D NIfTI (" + std::to_string(more) +
@@ -203,8 +215,8 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
   }
   std::int64_t data_bytes = 0;
   header.type = sample_type(f.datatype);
-  if (__builtin_mul_overflow(voxels, static_cast<std::int64_t>(volume_file::sample_bytes(header.type)),
-                             &data_bytes) ||
+  if (__builtin_mul_overflow(
+          voxels, static_cast<std::int64_t>(volume_file::sample_bytes(header.type)), &data_bytes) ||
       data_bytes > (std::int64_t{1} << 48)) {
     throw ReadError("NIfTI dimensions whose product overflows");
   }
@@ -221,7 +233,8 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
   if (header.data_offset < header_bytes) {
     header.warnings.push_back("vox_offset " + std::to_string(header.data_offset) +
                               " lies inside the header; data read from byte " +
-                              std::to_string(header_bytes + 4) + " (after the header and its "
+                              std::to_string(header_bytes + 4) +
+                              " (after the header and its "
                               "extension flags)");
     header.data_offset = header_bytes + 4;
   }
@@ -250,12 +263,14 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
     }
     header.geometry = to_lps(m);
     header.geometry_source = "pixel spacing";
-    header.warnings.push_back("no sform or qform: voxels placed by their pixel spacing alone "
-                              "(orientation unknown, taken as RAS)");
+    header.warnings.push_back(
+        "no sform or qform: voxels placed by their pixel spacing alone "
+        "(orientation unknown, taken as RAS)");
   }
   const double det = header.geometry.determinant();
   if (!std::isfinite(det) || std::abs(det) < 1e-12) {
-    throw ReadError("the NIfTI " + header.geometry_source + " is singular (a zero or parallel axis)");
+    throw ReadError("the NIfTI " + header.geometry_source +
+                    " is singular (a zero or parallel axis)");
   }
   return header;
 }
@@ -282,8 +297,8 @@ NiftiImage decode_nifti(std::span<const std::uint8_t> file_bytes, const ReadOpti
     throw ReadError("NIfTI vox_offset lies beyond the end of the file");
   }
   if (file_bytes.size() - h.data_offset < h.data_bytes()) {
-    throw ReadError("the NIfTI file is truncated: its data needs " + std::to_string(h.data_bytes()) +
-                    " bytes after vox_offset, it holds " +
+    throw ReadError("the NIfTI file is truncated: its data needs " +
+                    std::to_string(h.data_bytes()) + " bytes after vox_offset, it holds " +
                     std::to_string(file_bytes.size() - h.data_offset));
   }
   image.volume = core::Volume::uninitialized(h.size, h.geometry);
@@ -300,7 +315,8 @@ NiftiImage decode_nifti(std::span<const std::uint8_t> file_bytes, const ReadOpti
 
 NiftiImage read_nifti(const std::filesystem::path& path, const ReadOptions& options) {
   const NiftiHeader header = read_header(path);
-  const std::uint64_t float_bytes = static_cast<std::uint64_t>(header.size.voxels()) * sizeof(float);
+  const std::uint64_t float_bytes =
+      static_cast<std::uint64_t>(header.size.voxels()) * sizeof(float);
   if (float_bytes > options.max_volume_bytes) {
     throw ReadError("the NIfTI volume (" + std::to_string(header.size.nx) + "x" +
                     std::to_string(header.size.ny) + "x" + std::to_string(header.size.nz) +
@@ -308,7 +324,8 @@ NiftiImage read_nifti(const std::filesystem::path& path, const ReadOptions& opti
   }
   try {
     const std::uint64_t need = header.data_offset + header.data_bytes();
-    return decode_nifti(volume_file::read_maybe_gzip(path, static_cast<std::size_t>(need)), options);
+    return decode_nifti(volume_file::read_maybe_gzip(path, static_cast<std::size_t>(need)),
+                        options);
   } catch (const volume_file::FileError& error) {
     throw ReadError(std::string("NIfTI: ") + error.what());
   }

@@ -57,27 +57,46 @@ std::optional<double> parse_double(std::string_view s) {
 
 std::optional<SampleType> sample_type(std::string_view text) {
   static const std::map<std::string, SampleType, std::less<>> types = {
-      {"signed char", SampleType::int8}, {"int8", SampleType::int8}, {"int8_t", SampleType::int8},
-      {"uchar", SampleType::uint8}, {"unsigned char", SampleType::uint8},
-      {"uint8", SampleType::uint8}, {"uint8_t", SampleType::uint8},
-      {"short", SampleType::int16}, {"short int", SampleType::int16},
-      {"signed short", SampleType::int16}, {"signed short int", SampleType::int16},
-      {"int16", SampleType::int16}, {"int16_t", SampleType::int16},
-      {"ushort", SampleType::uint16}, {"unsigned short", SampleType::uint16},
-      {"unsigned short int", SampleType::uint16}, {"uint16", SampleType::uint16},
+      {"signed char", SampleType::int8},
+      {"int8", SampleType::int8},
+      {"int8_t", SampleType::int8},
+      {"uchar", SampleType::uint8},
+      {"unsigned char", SampleType::uint8},
+      {"uint8", SampleType::uint8},
+      {"uint8_t", SampleType::uint8},
+      {"short", SampleType::int16},
+      {"short int", SampleType::int16},
+      {"signed short", SampleType::int16},
+      {"signed short int", SampleType::int16},
+      {"int16", SampleType::int16},
+      {"int16_t", SampleType::int16},
+      {"ushort", SampleType::uint16},
+      {"unsigned short", SampleType::uint16},
+      {"unsigned short int", SampleType::uint16},
+      {"uint16", SampleType::uint16},
       {"uint16_t", SampleType::uint16},
-      {"int", SampleType::int32}, {"signed int", SampleType::int32},
-      {"int32", SampleType::int32}, {"int32_t", SampleType::int32},
-      {"uint", SampleType::uint32}, {"unsigned int", SampleType::uint32},
-      {"uint32", SampleType::uint32}, {"uint32_t", SampleType::uint32},
-      {"longlong", SampleType::int64}, {"long long", SampleType::int64},
-      {"long long int", SampleType::int64}, {"signed long long", SampleType::int64},
-      {"signed long long int", SampleType::int64}, {"int64", SampleType::int64},
+      {"int", SampleType::int32},
+      {"signed int", SampleType::int32},
+      {"int32", SampleType::int32},
+      {"int32_t", SampleType::int32},
+      {"uint", SampleType::uint32},
+      {"unsigned int", SampleType::uint32},
+      {"uint32", SampleType::uint32},
+      {"uint32_t", SampleType::uint32},
+      {"longlong", SampleType::int64},
+      {"long long", SampleType::int64},
+      {"long long int", SampleType::int64},
+      {"signed long long", SampleType::int64},
+      {"signed long long int", SampleType::int64},
+      {"int64", SampleType::int64},
       {"int64_t", SampleType::int64},
-      {"ulonglong", SampleType::uint64}, {"unsigned long long", SampleType::uint64},
-      {"unsigned long long int", SampleType::uint64}, {"uint64", SampleType::uint64},
+      {"ulonglong", SampleType::uint64},
+      {"unsigned long long", SampleType::uint64},
+      {"unsigned long long int", SampleType::uint64},
+      {"uint64", SampleType::uint64},
       {"uint64_t", SampleType::uint64},
-      {"float", SampleType::float32}, {"double", SampleType::float64}};
+      {"float", SampleType::float32},
+      {"double", SampleType::float64}};
   const auto it = types.find(lower(trim(text)));
   if (it == types.end()) return std::nullopt;
   return it->second;
@@ -98,7 +117,8 @@ std::optional<core::Vec3> parse_vector(std::string_view text, const char* field)
       throw ReadError(std::string("NRRD ") + field + ": a vector needs three components");
     }
     const auto value = parse_double(text.substr(0, comma));
-    if (!value) throw ReadError(std::string("NRRD ") + field + ": a component is not a finite number");
+    if (!value)
+      throw ReadError(std::string("NRRD ") + field + ": a component is not a finite number");
     v[c] = *value;
     text = c < 2 ? text.substr(comma + 1) : std::string_view{};
   }
@@ -116,7 +136,8 @@ std::vector<std::optional<core::Vec3>> parse_vectors(std::string_view text, cons
     std::size_t end = at;
     if (text[at] == '(') {
       end = text.find(')', at);
-      if (end == std::string_view::npos) throw ReadError(std::string("NRRD ") + field + ": unclosed (");
+      if (end == std::string_view::npos)
+        throw ReadError(std::string("NRRD ") + field + ": unclosed (");
       ++end;
     } else {
       while (end < text.size() && !std::isspace(static_cast<unsigned char>(text[end]))) ++end;
@@ -173,9 +194,7 @@ std::uint64_t NrrdHeader::samples() const {
   return static_cast<std::uint64_t>(size.voxels()) * layers;
 }
 
-std::uint64_t NrrdHeader::data_bytes() const {
-  return samples() * volume_file::sample_bytes(type);
-}
+std::uint64_t NrrdHeader::data_bytes() const { return samples() * volume_file::sample_bytes(type); }
 
 NrrdHeader parse_nrrd_header(std::string_view text) {
   if (text.substr(0, 7) != "NRRD000" || text.size() < 8 ||
@@ -269,7 +288,8 @@ NrrdHeader parse_nrrd_header(std::string_view text) {
   std::vector<std::optional<core::Vec3>> directions;
   if (const std::string* d = field({"space directions"})) {
     directions = parse_vectors(*d, "space directions");
-    if (directions.size() != ndim) throw ReadError("NRRD space directions do not match its dimension");
+    if (directions.size() != ndim)
+      throw ReadError("NRRD space directions do not match its dimension");
     for (std::size_t a = 0; a < ndim; ++a) spatial[a] = directions[a].has_value();
   }
   if (const std::string* k = field({"kinds"})) {
@@ -281,7 +301,8 @@ NrrdHeader parse_nrrd_header(std::string_view text) {
       }
     }
   }
-  const auto spatial_count = static_cast<std::size_t>(std::count(spatial.begin(), spatial.end(), true));
+  const auto spatial_count =
+      static_cast<std::size_t>(std::count(spatial.begin(), spatial.end(), true));
   if (ndim == 4 && spatial_count == 4) spatial[0] = false;  // a list axis first, as Slicer writes
   if (std::count(spatial.begin(), spatial.end(), true) != 3) {
     throw ReadError("NRRD needs three spatial axes (and at most one list axis)");
@@ -337,7 +358,8 @@ NrrdHeader parse_nrrd_header(std::string_view text) {
       header.geometry.axes[a] = {0, 0, 0};
       header.geometry.axes[a][a] = std::abs(*v);
     }
-    header.warnings.push_back("NRRD without space directions: axes taken along LPS by their spacings");
+    header.warnings.push_back(
+        "NRRD without space directions: axes taken along LPS by their spacings");
   } else {
     header.warnings.push_back("NRRD without space directions or spacings: 1 mm voxels along LPS");
   }
@@ -360,9 +382,11 @@ NrrdHeader parse_nrrd_header(std::string_view text) {
   } else if (enc == "gzip" || enc == "gz") {
     header.encoding = Encoding::gzip;
   } else {
-    throw ReadError("NRRD encoding " + std::string(enc == "bzip2" || enc == "bz2" ? "bzip2" :
-                    enc == "ascii" || enc == "text" || enc == "txt" ? "ascii" :
-                    enc == "hex" ? "hex" : "(unknown)") +
+    throw ReadError("NRRD encoding " +
+                    std::string(enc == "bzip2" || enc == "bz2"                    ? "bzip2"
+                                : enc == "ascii" || enc == "text" || enc == "txt" ? "ascii"
+                                : enc == "hex"                                    ? "hex"
+                                                                                  : "(unknown)") +
                     " is not supported (raw and gzip are)");
   }
   if (const std::string* e = field({"endian"})) {

@@ -32,18 +32,18 @@ class ReadError : public std::runtime_error {
 enum class Encoding { raw, gzip };
 
 struct NrrdHeader {
-  core::VolumeSize size;            // the three spatial axes, in file order
-  std::size_t layers = 1;           // entries of the non-spatial axis (1 when there is none)
-  bool layer_axis_first = true;     // the non-spatial axis is the fastest (else the slowest)
-  core::IndexToPatient geometry;    // index → LPS mm (centre of the first sample at origin)
+  core::VolumeSize size;          // the three spatial axes, in file order
+  std::size_t layers = 1;         // entries of the non-spatial axis (1 when there is none)
+  bool layer_axis_first = true;   // the non-spatial axis is the fastest (else the slowest)
+  core::IndexToPatient geometry;  // index → LPS mm (centre of the first sample at origin)
   volume_file::SampleType type = volume_file::SampleType::uint8;
   bool big_endian = false;
   Encoding encoding = Encoding::raw;
-  std::string data_file;            // detached data, relative to the header's folder; "" attached
-  std::int64_t byte_skip = 0;       // -1: the data is the file's last bytes (raw only)
+  std::string data_file;       // detached data, relative to the header's folder; "" attached
+  std::int64_t byte_skip = 0;  // -1: the data is the file's last bytes (raw only)
   std::int64_t line_skip = 0;
-  std::size_t header_bytes = 0;     // attached data starts here (after the blank line)
-  bool segmentation = false;        // it has Slicer's Segment keys (a .seg.nrrd)
+  std::size_t header_bytes = 0;         // attached data starts here (after the blank line)
+  bool segmentation = false;            // it has Slicer's Segment keys (a .seg.nrrd)
   std::vector<core::Segment> segments;  // from the Segment keys, in their index order
   std::vector<std::string> warnings;
 

@@ -39,7 +39,8 @@ NrrdImage decode_nrrd_data(NrrdHeader header, std::span<const std::uint8_t> data
   volume_file::Bytes inflated;
   if (header.encoding == Encoding::gzip) {
     try {
-      inflated = volume_file::gunzip(data, static_cast<std::size_t>(need + static_cast<std::uint64_t>(header.byte_skip)));
+      inflated = volume_file::gunzip(
+          data, static_cast<std::size_t>(need + static_cast<std::uint64_t>(header.byte_skip)));
     } catch (const volume_file::FileError& error) {
       throw ReadError(std::string("NRRD data: ") + error.what());
     }
@@ -69,8 +70,8 @@ NrrdImage decode_nrrd_data(NrrdHeader header, std::span<const std::uint8_t> data
     core::Volume volume = core::Volume::uninitialized(header.size, header.geometry);
     const std::size_t start = header.layer_axis_first ? l : l * voxels;
     const std::size_t stride = header.layer_axis_first ? layers : 1;
-    const auto summary = volume_file::decode_samples(data, header.type, swap, start, stride,
-                                                     voxels, 1.0, 0.0, volume.samples().data());
+    const auto summary = volume_file::decode_samples(data, header.type, swap, start, stride, voxels,
+                                                     1.0, 0.0, volume.samples().data());
     if (first) {
       image.values = summary;
       first = false;

@@ -28,7 +28,7 @@ namespace typemerge::nrrd {
 
 struct NrrdImage {
   NrrdHeader header;
-  std::vector<core::Volume> layers;  // header.layers of them
+  std::vector<core::Volume> layers;   // header.layers of them
   volume_file::DecodeSummary values;  // over all layers
   std::vector<std::string> warnings;  // the header's, then the values'
 };

@@ -53,15 +53,19 @@ DecodeSummary decode(const std::uint8_t* data, bool swap, std::size_t first, std
 std::size_t sample_bytes(SampleType type) {
   switch (type) {
     case SampleType::int8:
-    case SampleType::uint8: return 1;
+    case SampleType::uint8:
+      return 1;
     case SampleType::int16:
-    case SampleType::uint16: return 2;
+    case SampleType::uint16:
+      return 2;
     case SampleType::int32:
     case SampleType::uint32:
-    case SampleType::float32: return 4;
+    case SampleType::float32:
+      return 4;
     case SampleType::int64:
     case SampleType::uint64:
-    case SampleType::float64: return 8;
+    case SampleType::float64:
+      return 8;
   }
   return 1;
 }
@@ -72,37 +76,57 @@ bool is_integer(SampleType type) {
 
 std::string_view to_string(SampleType type) {
   switch (type) {
-    case SampleType::int8: return "int8";
-    case SampleType::uint8: return "uint8";
-    case SampleType::int16: return "int16";
-    case SampleType::uint16: return "uint16";
-    case SampleType::int32: return "int32";
-    case SampleType::uint32: return "uint32";
-    case SampleType::int64: return "int64";
-    case SampleType::uint64: return "uint64";
-    case SampleType::float32: return "float32";
-    case SampleType::float64: return "float64";
+    case SampleType::int8:
+      return "int8";
+    case SampleType::uint8:
+      return "uint8";
+    case SampleType::int16:
+      return "int16";
+    case SampleType::uint16:
+      return "uint16";
+    case SampleType::int32:
+      return "int32";
+    case SampleType::uint32:
+      return "uint32";
+    case SampleType::int64:
+      return "int64";
+    case SampleType::uint64:
+      return "uint64";
+    case SampleType::float32:
+      return "float32";
+    case SampleType::float64:
+      return "float64";
   }
   return "?";
 }
 
 DecodeSummary decode_samples(std::span<const std::uint8_t> data, SampleType type, bool swap,
-                             std::size_t first, std::size_t stride, std::size_t count,
-                             double slope, double inter, float* out) {
+                             std::size_t first, std::size_t stride, std::size_t count, double slope,
+                             double inter, float* out) {
   assert(stride >= 1);
   assert(count == 0 || (first + (count - 1) * stride + 1) * sample_bytes(type) <= data.size());
   const std::uint8_t* p = data.data();
   switch (type) {
-    case SampleType::int8: return decode<std::int8_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::uint8: return decode<std::uint8_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::int16: return decode<std::int16_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::uint16: return decode<std::uint16_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::int32: return decode<std::int32_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::uint32: return decode<std::uint32_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::int64: return decode<std::int64_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::uint64: return decode<std::uint64_t>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::float32: return decode<float>(p, swap, first, stride, count, slope, inter, out);
-    case SampleType::float64: return decode<double>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::int8:
+      return decode<std::int8_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::uint8:
+      return decode<std::uint8_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::int16:
+      return decode<std::int16_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::uint16:
+      return decode<std::uint16_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::int32:
+      return decode<std::int32_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::uint32:
+      return decode<std::uint32_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::int64:
+      return decode<std::int64_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::uint64:
+      return decode<std::uint64_t>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::float32:
+      return decode<float>(p, swap, first, stride, count, slope, inter, out);
+    case SampleType::float64:
+      return decode<double>(p, swap, first, stride, count, slope, inter, out);
   }
   return {};
 }

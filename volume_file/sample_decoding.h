@@ -10,7 +10,18 @@
 
 namespace typemerge::volume_file {
 
-enum class SampleType { int8, uint8, int16, uint16, int32, uint32, int64, uint64, float32, float64 };
+enum class SampleType {
+  int8,
+  uint8,
+  int16,
+  uint16,
+  int32,
+  uint32,
+  int64,
+  uint64,
+  float32,
+  float64
+};
 
 std::size_t sample_bytes(SampleType type);
 bool is_integer(SampleType type);
@@ -27,7 +38,7 @@ struct DecodeSummary {
 // least (first + (count − 1) · stride + 1) samples. Integers above 2^24 round to the nearest
 // float; non-finite results are stored as 0 and counted.
 DecodeSummary decode_samples(std::span<const std::uint8_t> data, SampleType type, bool swap,
-                             std::size_t first, std::size_t stride, std::size_t count,
-                             double slope, double inter, float* out);
+                             std::size_t first, std::size_t stride, std::size_t count, double slope,
+                             double inter, float* out);
 
 }  // namespace typemerge::volume_file

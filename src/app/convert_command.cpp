@@ -18,6 +18,7 @@
 #include <ostream>
 
 #include "app/exit_codes.h"
+#include "app/label_mode.h"
 #include "app/memory_budget.h"
 #include "app/presets.h"
 #include "app/version.h"
@@ -222,7 +223,9 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
                       "whose conversion would need more (about 6 bytes a voxel + 211 MiB for one surface, "
                       "more per surface, window, --reduce-to and --hollow) is refused "
                       "before loading, and the process's address space is limited to it");
-  add_surface_options(*command->add_option_group("Surface"), options);
+  CLI::App* surface = command->add_option_group("Surface");
+  add_surface_options(*surface, options);
+  add_label_options(*command, *surface, options);
 }
 
 void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
@@ -320,6 +323,7 @@ ConversionShape conversion_shape(const ConvertOptions& options) {
 }
 
 int run_convert(const ConvertOptions& options, std::ostream& log) {
+  if (label_mode_requested(options)) return run_label_convert(options, log);
   const auto run_start = Clock::now();
   // Progress for people at a terminal; scripts and logs (stderr not a TTY) get only results.
   const bool interactive = ::isatty(STDERR_FILENO) == 1;
@@ -358,7 +362,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   ordered_json report = {{"tool", "typemerge"}, {"version", kVersion}};
   const auto load_start = Clock::now();
   progress("reading " + options.input.input);
-  LoadedInput input = load_input(options.input, options.series_id, [&](const dicom::SeriesInfo& s) {
+  LoadedInput input = load_input(options.input, options.series_id, [&](const InputShape& s) {
     const std::uint64_t voxels = working_voxels(s.grid_size(), s.spacing_mm(), options.voxel_size_mm);
     const std::uint64_t estimate = conversion_memory_estimate(voxels, shape);
     if (estimate > max_memory) {

@@ -10,6 +10,7 @@
 #include <ostream>
 
 #include "app/exit_codes.h"
+#include "app/volume_file_info.h"
 
 namespace typemerge::app {
 namespace {
@@ -163,6 +164,9 @@ void add_info_command(CLI::App& app, InfoOptions& options) {
 }
 
 int run_info(const InfoOptions& options, std::ostream& out) {
+  if (const InputKind kind = input_kind(options.input.input); kind != InputKind::dicom) {
+    return run_volume_file_info(options, kind, out);
+  }
   const dicom::FolderScan scan = scan_input(options.input);
   std::vector<SeriesValues> values;
   for (const auto& series : scan.series) values.push_back(load_values(series));

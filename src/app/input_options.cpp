@@ -20,7 +20,9 @@ dicom::ScanOptions InputOptions::scan_options() const {
 }
 
 void add_input_options(CLI::App& command, InputOptions& options, bool required) {
-  command.add_option("DIR", options.input, "DICOM folder (searched recursively) or file")
+  command.add_option("DIR", options.input,
+                     "DICOM folder (searched recursively) or file, or a NIfTI (.nii, .nii.gz) "
+                     "or NRRD (.nrrd, .seg.nrrd, .nhdr) file")
       ->required(required);
   command.add_flag("--resample-spacing", options.resample_spacing,
                    "Accept series with missing slices or uneven spacing by resampling them "
@@ -96,12 +98,61 @@ dicom::FolderScan scan_input(const InputOptions& options) {
   }
 }
 
+namespace {
+
+// A NIfTI or NRRD file as a scan of one series (see LoadedInput).
+LoadedInput load_volume_file_input(const InputOptions& options, const std::string& series_id,
+                                   InputKind kind,
+                                   const std::function<void(const InputShape&)>& before_load) {
+  if (!series_id.empty()) {
+    throw CommandError{kExitUsage, "--series applies to DICOM folders, not to a " +
+                                       std::string(to_string(kind)) + " file"};
+  }
+  const VolumeFileShape shape = read_volume_file_shape(options.input, kind);
+  if (shape.layers > 1) {
+    throw CommandError{kExitInputRefused,
+                       "this " + std::string(to_string(kind)) + " file holds " +
+                           std::to_string(shape.layers) +
+                           " layers of segments: convert it in label mode (--labels all)"};
+  }
+  LoadedInput input;
+  input.kind = kind;
+  dicom::SeriesInfo series;
+  series.id = kind == InputKind::nifti ? "nifti" : "nrrd";
+  series.geometry.slice_step_mm = shape.geometry.spacing(2);
+  series.geometry.index_to_patient = shape.geometry;
+  if (before_load) {
+    before_load({series.id,
+                 {static_cast<std::uint64_t>(shape.size.nx), static_cast<std::uint64_t>(shape.size.ny),
+                  static_cast<std::uint64_t>(shape.size.nz)},
+                 shape.spacing_mm()});
+  }
+  VolumeFile file = read_volume_file(options.input, kind);
+  input.scan.series.push_back(std::move(series));
+  input.scan.default_series = 0;
+  input.scan.files_seen = 1;
+  input.series = &input.scan.series.front();
+  input.loaded.series_id = input.series->id;
+  input.loaded.volume = std::move(file.content.layers.front());
+  input.loaded.min_hu = file.values.min;
+  input.loaded.max_hu = file.values.max;
+  input.loaded.warnings = std::move(file.warnings);
+  return input;
+}
+
+}  // namespace
+
 LoadedInput load_input(const InputOptions& options, const std::string& series_id,
-                       const std::function<void(const dicom::SeriesInfo&)>& before_load) {
+                       const std::function<void(const InputShape&)>& before_load) {
+  if (const InputKind kind = input_kind(options.input); kind != InputKind::dicom) {
+    return load_volume_file_input(options, series_id, kind, before_load);
+  }
   LoadedInput input;
   input.scan = scan_input(options);
   input.series = &select_series(input.scan, series_id);
-  if (before_load) before_load(*input.series);
+  if (before_load) {
+    before_load({input.series->id, input.series->grid_size(), input.series->spacing_mm()});
+  }
   try {
     input.loaded = dicom::load_series(*input.series);
   } catch (const dicom::LoadError& error) {

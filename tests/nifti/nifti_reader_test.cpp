@@ -1,12 +1,13 @@
 // NIfTI reader: files written byte by byte from the specification (support/volume_file_writers.h)
 // for every data type, both versions, both byte orders, gzip, each geometry source and each
 // refusal; then the shared real NIfTI files.
+#include "nifti/nifti_reader.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 
-#include "nifti/nifti_reader.h"
 #include "support/scratch_files.h"
 #include "support/test_data.h"
 #include "support/volume_file_writers.h"
@@ -50,9 +51,9 @@ TEST(NiftiReader, SformFloatValuesAndLpsGeometry) {
 }
 
 TEST(NiftiReader, EveryIntegerAndFloatTypeWithScaling) {
-  for (int type : {test::kDtUint8, test::kDtInt8, test::kDtInt16, test::kDtUint16, test::kDtInt32,
-                   test::kDtUint32, test::kDtInt64, test::kDtUint64, test::kDtFloat32,
-                   test::kDtFloat64}) {
+  for (int type :
+       {test::kDtUint8, test::kDtInt8, test::kDtInt16, test::kDtUint16, test::kDtInt32,
+        test::kDtUint32, test::kDtInt64, test::kDtUint64, test::kDtFloat32, test::kDtFloat64}) {
     NiftiSpec spec = small_spec(type);
     spec.slope = 2;
     spec.inter = -1;
@@ -157,7 +158,8 @@ TEST(NiftiReader, Refusals) {
 
   NiftiSpec overflow = small_spec();
   overflow.version = 2;
-  overflow.dim = {3, std::int64_t{1} << 40, std::int64_t{1} << 40, std::int64_t{1} << 40, 1, 1, 1, 1};
+  overflow.dim = {3, std::int64_t{1} << 40, std::int64_t{1} << 40, std::int64_t{1} << 40, 1, 1, 1,
+                  1};
   expect_refused(overflow, "overflow");
 
   NiftiSpec zero_dim = small_spec();

@@ -1,11 +1,12 @@
 // NRRD reader: files written from the format's specification in the test (raw and gzip,
 // attached and detached, both byte orders, every type, each space), Slicer's .seg.nrrd keys
 // and layers, refusals; then the shared Slicer label maps.
+#include "nrrd/nrrd_reader.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
 
-#include "nrrd/nrrd_reader.h"
 #include "support/scratch_files.h"
 #include "support/test_data.h"
 #include "support/volume_file_writers.h"
@@ -62,8 +63,8 @@ TEST(NrrdReader, EveryTypeBothByteOrdersGzip) {
     for (bool big : {false, true}) {
       for (bool gzip : {false, true}) {
         const std::string header = std::string("type: ") + c.name + "\n" + kGeometry +
-                                   "encoding: " + (gzip ? "gzip" : "raw") + "\nendian: " +
-                                   (big ? "big" : "little") + "\n";
+                                   "encoding: " + (gzip ? "gzip" : "raw") +
+                                   "\nendian: " + (big ? "big" : "little") + "\n";
         const NrrdImage image = decode_nrrd(test::nrrd_bytes(header, c.raw(ramp(24), big), gzip));
         for (int i = 0; i < 24; ++i) {
           ASSERT_FLOAT_EQ(image.layers[0].samples()[static_cast<std::size_t>(i)], float(i))
@@ -78,8 +79,8 @@ TEST(NrrdReader, DetachedHeaderWithByteSkip) {
   const fs::path dir = test::fresh_dir("nhdr");
   {
     std::ofstream h(dir / "v.nhdr");
-    h << "NRRD0004\ntype: float\n" << kGeometry
-      << "encoding: raw\nendian: little\nbyte skip: -1\ndata file: v.raw\n";
+    h << "NRRD0004\ntype: float\n"
+      << kGeometry << "encoding: raw\nendian: little\nbyte skip: -1\ndata file: v.raw\n";
   }
   test::FileBytes data(7, 0xee);  // junk before the samples
   const auto samples = test::raw_samples<float>(ramp(24));
@@ -96,7 +97,8 @@ TEST(NrrdReader, SpacesAndSpacings) {
     const std::string header = "type: uchar\ndimension: 3\nsizes: 4 3 2\nspace: " + space +
                                "\nspace directions: (1,0,0) (0,1,0) (0,0,1)\n"
                                "space origin: (5,6,7)\nencoding: raw\n";
-    const NrrdImage image = decode_nrrd(test::nrrd_bytes(header, test::raw_samples<std::uint8_t>(ramp(24)), false));
+    const NrrdImage image =
+        decode_nrrd(test::nrrd_bytes(header, test::raw_samples<std::uint8_t>(ramp(24)), false));
     return std::array<double, 2>{image.layers[0].geometry().origin[0],
                                  image.layers[0].geometry().origin[1]};
   };
@@ -116,7 +118,7 @@ TEST(NrrdReader, SlicerLayeredSegmentation) {
   std::vector<double> values;
   for (int v = 0; v < 24; ++v) {
     values.push_back(v < 8 ? 1 : v < 16 ? 2 : 0);  // layer 0
-    values.push_back(v >= 4 && v < 12 ? 1 : 0);     // layer 1
+    values.push_back(v >= 4 && v < 12 ? 1 : 0);    // layer 1
   }
   const std::string header =
       "type: unsigned char\ndimension: 4\nsizes: 2 4 3 2\nkinds: list domain domain domain\n"
@@ -126,7 +128,8 @@ TEST(NrrdReader, SlicerLayeredSegmentation) {
       "Segment0_Tags:=PATIENT^NAME\n"
       "Segment1_Name:=spine\nSegment1_Color:=0 0.5 1\nSegment1_LabelValue:=2\nSegment1_Layer:=0\n"
       "Segment2_Name:=tumour\nSegment2_Color:=0 1 0\nSegment2_LabelValue:=1\nSegment2_Layer:=1\n";
-  NrrdImage image = decode_nrrd(test::nrrd_bytes(header, test::raw_samples<std::uint8_t>(values), true));
+  NrrdImage image =
+      decode_nrrd(test::nrrd_bytes(header, test::raw_samples<std::uint8_t>(values), true));
   EXPECT_TRUE(image.header.segmentation);
   ASSERT_EQ(image.layers.size(), 2u);
   EXPECT_FLOAT_EQ(image.layers[0].samples()[9], 2.0f);
@@ -158,14 +161,17 @@ TEST(NrrdReader, Refusals) {
   expect_refused(base + "encoding: ascii\n", data, false, "not supported");
   expect_refused("type: uchar\ndimension: 3\nsizes: 4000000 4000000 4000000\nencoding: raw\n", data,
                  false, "");
-  expect_refused("type: uchar\ndimension: 3\nsizes: 4 3 2\nspace: RAS\n"
-                 "space directions: (1,0,0) (0,1,0) (0,0,nan)\nencoding: raw\n",
-                 data, false, "finite");
-  expect_refused("type: uchar\ndimension: 3\nsizes: 4 3 2\nspace: RAS\n"
-                 "space directions: (1,0,0) (1,0,0) (0,0,1)\nencoding: raw\n",
-                 data, false, "singular");
+  expect_refused(
+      "type: uchar\ndimension: 3\nsizes: 4 3 2\nspace: RAS\n"
+      "space directions: (1,0,0) (0,1,0) (0,0,nan)\nencoding: raw\n",
+      data, false, "finite");
+  expect_refused(
+      "type: uchar\ndimension: 3\nsizes: 4 3 2\nspace: RAS\n"
+      "space directions: (1,0,0) (1,0,0) (0,0,1)\nencoding: raw\n",
+      data, false, "singular");
   expect_refused("type: block\n" + kGeometry + "encoding: raw\n", data, false, "type");
-  expect_refused("type: uchar\ndimension: 2\nsizes: 4 6\nencoding: raw\n", data, false, "dimension");
+  expect_refused("type: uchar\ndimension: 2\nsizes: 4 6\nencoding: raw\n", data, false,
+                 "dimension");
   auto gz = test::gzip_bytes(data);
   gz.resize(gz.size() / 2);
   try {
@@ -178,14 +184,15 @@ TEST(NrrdReader, Refusals) {
   EXPECT_THROW(decode_nrrd(test::FileBytes{'N', 'R', 'R', 'D'}), ReadError);
   ReadOptions small;
   small.max_volume_bytes = 16;
-  EXPECT_THROW(decode_nrrd(test::nrrd_bytes(base + "encoding: raw\n", data, false), small), ReadError);
+  EXPECT_THROW(decode_nrrd(test::nrrd_bytes(base + "encoding: raw\n", data, false), small),
+               ReadError);
 }
 
 TEST(NrrdRealData, SlicerLabelMaps) {
   TYPEMERGE_REQUIRE_REAL_DATA(data);
   const fs::path dir = data / "seg" / "dcmqi";
-  for (const char* name : {"liver_seg.nrrd", "heart_seg.nrrd", "liver_spine_seg.nrrd",
-                           "23x38x3/nrrd/label.nrrd"}) {
+  for (const char* name :
+       {"liver_seg.nrrd", "heart_seg.nrrd", "liver_spine_seg.nrrd", "23x38x3/nrrd/label.nrrd"}) {
     if (!fs::exists(dir / name)) GTEST_SKIP() << (dir / name) << " absent";
     const NrrdImage image = read_nrrd(dir / name);
     ASSERT_EQ(image.layers.size(), 1u) << name;

@@ -29,7 +29,8 @@ inline void write_bytes(const std::filesystem::path& path, const FileBytes& byte
     return;
   }
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+  out.write(reinterpret_cast<const char*>(bytes.data()),
+            static_cast<std::streamsize>(bytes.size()));
 }
 
 inline FileBytes gzip_bytes(const FileBytes& raw) {
@@ -59,7 +60,8 @@ class ByteWriter {
     std::memcpy(bytes_.data() + offset, b, sizeof(T));
   }
   void text(std::size_t offset, const std::string& s, std::size_t max) {
-    for (std::size_t i = 0; i < std::min(s.size(), max); ++i) bytes_[offset + i] = static_cast<std::uint8_t>(s[i]);
+    for (std::size_t i = 0; i < std::min(s.size(), max); ++i)
+      bytes_[offset + i] = static_cast<std::uint8_t>(s[i]);
   }
   template <typename T>
   void append_values(const std::vector<double>& values) {
@@ -74,8 +76,17 @@ class ByteWriter {
 
 // NIfTI datatype codes.
 enum NiftiType : int {
-  kDtUint8 = 2, kDtInt16 = 4, kDtInt32 = 8, kDtFloat32 = 16, kDtFloat64 = 64, kDtInt8 = 256,
-  kDtUint16 = 512, kDtUint32 = 768, kDtInt64 = 1024, kDtUint64 = 1280, kDtComplex64 = 32
+  kDtUint8 = 2,
+  kDtInt16 = 4,
+  kDtInt32 = 8,
+  kDtFloat32 = 16,
+  kDtFloat64 = 64,
+  kDtInt8 = 256,
+  kDtUint16 = 512,
+  kDtUint32 = 768,
+  kDtInt64 = 1024,
+  kDtUint64 = 1280,
+  kDtComplex64 = 32
 };
 
 struct NiftiSpec {
@@ -97,7 +108,9 @@ struct NiftiSpec {
 };
 
 template <typename T>
-void append_as(ByteWriter& w, const std::vector<double>& values) { w.append_values<T>(values); }
+void append_as(ByteWriter& w, const std::vector<double>& values) {
+  w.append_values<T>(values);
+}
 
 inline FileBytes nifti_bytes(const NiftiSpec& s) {
   const bool v1 = s.version == 1;
@@ -105,18 +118,33 @@ inline FileBytes nifti_bytes(const NiftiSpec& s) {
   ByteWriter w(header + 4, s.big_endian);
   std::size_t ext_size = 0;
   if (!s.extension.empty()) ext_size = (8 + s.extension.size() + 15) / 16 * 16;
-  const std::int64_t offset = s.vox_offset >= 0 ? s.vox_offset : std::int64_t(header + 4 + ext_size);
+  const std::int64_t offset =
+      s.vox_offset >= 0 ? s.vox_offset : std::int64_t(header + 4 + ext_size);
   int bitpix = 8;
   switch (s.datatype) {
-    case kDtInt16: case kDtUint16: bitpix = 16; break;
-    case kDtInt32: case kDtUint32: case kDtFloat32: bitpix = 32; break;
-    case kDtInt64: case kDtUint64: case kDtFloat64: case kDtComplex64: bitpix = 64; break;
-    default: break;
+    case kDtInt16:
+    case kDtUint16:
+      bitpix = 16;
+      break;
+    case kDtInt32:
+    case kDtUint32:
+    case kDtFloat32:
+      bitpix = 32;
+      break;
+    case kDtInt64:
+    case kDtUint64:
+    case kDtFloat64:
+    case kDtComplex64:
+      bitpix = 64;
+      break;
+    default:
+      break;
   }
   if (v1) {
     w.put<std::int32_t>(0, 348);
     w.text(14, s.db_name, 18);
-    for (int d = 0; d < 8; ++d) w.put<std::int16_t>(40 + 2 * d, static_cast<std::int16_t>(s.dim[d]));
+    for (int d = 0; d < 8; ++d)
+      w.put<std::int16_t>(40 + 2 * d, static_cast<std::int16_t>(s.dim[d]));
     w.put<std::int16_t>(68, static_cast<std::int16_t>(s.intent_code));
     w.put<std::int16_t>(70, static_cast<std::int16_t>(s.datatype));
     w.put<std::int16_t>(72, static_cast<std::int16_t>(bitpix));
@@ -132,7 +160,8 @@ inline FileBytes nifti_bytes(const NiftiSpec& s) {
     for (int c = 0; c < 3; ++c) w.put<float>(256 + 4 * c, static_cast<float>(s.quatern[c]));
     for (int c = 0; c < 3; ++c) w.put<float>(268 + 4 * c, static_cast<float>(s.qoffset[c]));
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 4; ++c) w.put<float>(280 + 16 * r + 4 * c, static_cast<float>(s.srow[r][c]));
+      for (int c = 0; c < 4; ++c)
+        w.put<float>(280 + 16 * r + 4 * c, static_cast<float>(s.srow[r][c]));
     }
     w.text(328, s.intent_name, 16);
     w.text(344, std::string("n+1\0", 4), 4);
@@ -166,18 +195,39 @@ inline FileBytes nifti_bytes(const NiftiSpec& s) {
     w.bytes().resize(header + 4 + ext_size, 0);
     w.text(header + 12, s.extension, ext_size - 8);
   }
-  if (offset >= 0 && static_cast<std::size_t>(offset) > w.bytes().size()) w.bytes().resize(static_cast<std::size_t>(offset), 0);
+  if (offset >= 0 && static_cast<std::size_t>(offset) > w.bytes().size())
+    w.bytes().resize(static_cast<std::size_t>(offset), 0);
   switch (s.datatype) {
-    case kDtUint8: append_as<std::uint8_t>(w, s.values); break;
-    case kDtInt8: append_as<std::int8_t>(w, s.values); break;
-    case kDtInt16: append_as<std::int16_t>(w, s.values); break;
-    case kDtUint16: append_as<std::uint16_t>(w, s.values); break;
-    case kDtInt32: append_as<std::int32_t>(w, s.values); break;
-    case kDtUint32: append_as<std::uint32_t>(w, s.values); break;
-    case kDtInt64: append_as<std::int64_t>(w, s.values); break;
-    case kDtUint64: append_as<std::uint64_t>(w, s.values); break;
-    case kDtFloat64: append_as<double>(w, s.values); break;
-    default: append_as<float>(w, s.values); break;
+    case kDtUint8:
+      append_as<std::uint8_t>(w, s.values);
+      break;
+    case kDtInt8:
+      append_as<std::int8_t>(w, s.values);
+      break;
+    case kDtInt16:
+      append_as<std::int16_t>(w, s.values);
+      break;
+    case kDtUint16:
+      append_as<std::uint16_t>(w, s.values);
+      break;
+    case kDtInt32:
+      append_as<std::int32_t>(w, s.values);
+      break;
+    case kDtUint32:
+      append_as<std::uint32_t>(w, s.values);
+      break;
+    case kDtInt64:
+      append_as<std::int64_t>(w, s.values);
+      break;
+    case kDtUint64:
+      append_as<std::uint64_t>(w, s.values);
+      break;
+    case kDtFloat64:
+      append_as<double>(w, s.values);
+      break;
+    default:
+      append_as<float>(w, s.values);
+      break;
   }
   return w.bytes();
 }
