@@ -149,6 +149,8 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
     for (int d = 1; d <= 7; ++d) {
       if (d <= h.dim[0] && h.dim[d] < 1) h.dim[d] = 1;
     }
+    // The data type is checked first: nifticlib prints its own complaint on stderr.
+    header.type = sample_type(f.datatype);
     if (h.dim[0] >= 1 && h.dim[0] <= 7) nim.reset(nifti_convert_n1hdr2nim(h, nullptr));
   } else if (sizeof_hdr == 540 || swapped(sizeof_hdr) == 540) {
     header.version = 2;
@@ -179,6 +181,7 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
     // nifticlib multiplies the dimensions in int64: only valid ones reach it.
     bool dims_ok = h.dim[0] >= 1 && h.dim[0] <= 7;
     for (int d = 1; dims_ok && d <= h.dim[0]; ++d) dims_ok = h.dim[d] >= 1 && h.dim[d] <= (1 << 20);
+    header.type = sample_type(f.datatype);  // before nifticlib, which prints on stderr
     if (dims_ok) nim.reset(nifti_convert_n2hdr2nim(h, nullptr));
   } else {
     throw ReadError("not a NIfTI file (its first four bytes are not a NIfTI header size)");
@@ -214,7 +217,6 @@ NiftiHeader parse_header(std::span<const std::uint8_t> bytes) {
     }
   }
   std::int64_t data_bytes = 0;
-  header.type = sample_type(f.datatype);
   if (__builtin_mul_overflow(
           voxels, static_cast<std::int64_t>(volume_file::sample_bytes(header.type)), &data_bytes) ||
       data_bytes > (std::int64_t{1} << 48)) {
