@@ -107,8 +107,10 @@ void check_sop_class(DcmDataset& dataset) {
          "predates it; convert it to a binary SEG or a label map NRRD/NIfTI)");
   }
   if (sop_class != UID_SegmentationStorage) {
-    fail("not a Segmentation Storage object (SOP class " +
-         (sop_class.empty() ? std::string("missing") : sop_class) + ")");
+    // Only a standard SOP class's name: a file's own text never reaches a message.
+    const char* name = dcmFindNameOfUID(sop_class.c_str(), nullptr);
+    fail(std::string("not a Segmentation Storage object (SOP class ") +
+         (sop_class.empty() ? "missing" : (name != nullptr ? name : "unknown")) + ")");
   }
 }
 
@@ -130,7 +132,7 @@ void read_image_attributes(DcmDataset& dataset, OpenedSeg& seg) {
   } else if (type == "FRACTIONAL") {
     header.kind = SegKind::fractional;
   } else {
-    fail("unknown Segmentation Type \"" + type.substr(0, 16) + "\"");
+    fail("Segmentation Type missing or not BINARY or FRACTIONAL");
   }
   seg.rows = uint16_of(dataset, DCM_Rows, "Rows");
   seg.columns = uint16_of(dataset, DCM_Columns, "Columns");
@@ -398,6 +400,11 @@ void for_each_inside(const Uint8* pixels, const SegHeader& header, std::size_t f
   if (header.kind == SegKind::binary) {
     for (std::uint64_t p = 0; p < nx * ny; ++p) {
       const std::uint64_t bit = begin + p;
+      // A zero byte holds 8 outside pixels (most of a sparse segmentation).
+      if ((bit & 7) == 0 && p + 8 <= nx * ny && pixels[bit >> 3] == 0) {
+        p += 7;
+        continue;
+      }
       if ((pixels[bit >> 3] >> (bit & 7)) & 1u) {
         visit(static_cast<std::int64_t>(p % nx), static_cast<std::int64_t>(p / nx));
       }

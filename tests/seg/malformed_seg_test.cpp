@@ -92,7 +92,17 @@ TEST_F(MalformedSeg, NotASegmentation) {
   expect_refused(edited([](DcmDataset& d) {
                    d.putAndInsertString(DCM_SOPClassUID, "1.2.840.10008.5.1.4.1.1.2");
                  }),
-                 "not a Segmentation Storage");
+                 "not a Segmentation Storage object (SOP class CTImageStorage)");
+  // A file's own text is never echoed.
+  expect_refused(edited([](DcmDataset& d) {
+                   d.putAndInsertString(DCM_SOPClassUID, "1.2.3.4.5.6.7");
+                   d.putAndInsertString(DCM_SegmentationType, "DOE^JANE");
+                 }),
+                 "SOP class unknown");
+  expect_refused(edited([](DcmDataset& d) {
+                   d.putAndInsertString(DCM_SegmentationType, "DOE^JANE");
+                 }),
+                 "Segmentation Type missing or not BINARY or FRACTIONAL");
 }
 
 TEST_F(MalformedSeg, LabelMapSegIsRefusedByName) {

@@ -116,6 +116,32 @@ TEST(SyntheticSeg, GeometryFollowsOrientationAndSpacing) {
   EXPECT_GT(header.geometry.determinant(), 0);
 }
 
+TEST(SyntheticSeg, ScatteredPixelsEverywhereInTheBitStream) {
+  SynthSeg spec;
+  spec.rows = 8;
+  spec.columns = 16;
+  spec.segments = {{"Dots", std::nullopt}};
+  // Frame k: pixels (row k, column 3k + 1), the frame's last pixel, and a run across a byte.
+  for (int k = 0; k < 3; ++k) {
+    std::vector<std::uint8_t> pixels(128, 0);
+    pixels[static_cast<std::size_t>(k * 16 + 3 * k + 1)] = 1;
+    pixels[127] = 1;
+    for (int c = 5; c <= 10; ++c) pixels[static_cast<std::size_t>(7 * 16 - 16 + c)] = 1;
+    spec.frames.push_back({1, {0, 0, 1.0 * k}, pixels});
+  }
+  const SegVolume seg = read_seg(written(spec, "scattered"));
+  const core::Volume& layer = seg.labels.layers.at(0);
+  for (int k = 0; k < 3; ++k) {
+    for (int j = 0; j < 8; ++j) {
+      for (int i = 0; i < 16; ++i) {
+        const bool expected = (j == k && i == 3 * k + 1) || (j == 7 && i == 15) ||
+                              (j == 6 && i >= 5 && i <= 10);
+        EXPECT_EQ(layer.at(i, j, k) != 0.0f, expected) << i << "," << j << "," << k;
+      }
+    }
+  }
+}
+
 TEST(SyntheticSeg, FractionalIsThresholdedAtHalfTheMaximum) {
   SynthSeg spec;
   spec.fractional = true;
