@@ -94,6 +94,12 @@ std::string parameter_text(const BatchOptions& options) {
   all.insert(all.end(), options.surface_arguments.begin(), options.surface_arguments.end());
   // Only when not the default, so that manifests of STL batches stay valid.
   if (options.format != "stl") all.push_back("--format=" + options.format);
+  // --reduce-to and --max-error changed meaning (quadric decimation → type merging within a
+  // bound in mm): outputs made with the old meaning are not up to date.
+  const bool reduces = std::any_of(all.begin(), all.end(), [](const std::string& a) {
+    return a.rfind("--reduce-to", 0) == 0 || a.rfind("--max-error", 0) == 0;
+  });
+  if (reduces) all.push_back("--reduction=type-merging");
   std::sort(all.begin(), all.end());
   std::string text;
   for (const std::string& a : all) text += a + "\n";

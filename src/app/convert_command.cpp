@@ -69,6 +69,47 @@ void check_tissue(const core::Volume& volume, float min_hu, float max_hu, const 
   }
 }
 
+// --reduce-to and --max-error are type merging's own; refused where they cannot mean that.
+void check_reduction_options(const ConvertOptions& options) {
+  if (!options.removed_decimator.empty()) {
+    throw CommandError{kExitUsage,
+                       "--decimator was removed: --reduce-to and --max-error are type merging "
+                       "itself now, with every guarantee kept (closed, no crossings, within the "
+                       "bound); drop --decimator"};
+  }
+  const bool reduces = options.finish_options.reduce_to_triangles > 0 ||
+                       options.finish_options.max_error_mm > 0;
+  if (reduces && options.algorithm != "tm") {
+    throw CommandError{kExitUsage, "--reduce-to and --max-error are type merging's reduction; "
+                                   "--algorithm " + options.algorithm +
+                                   " is the unreduced surface: drop one of them"};
+  }
+}
+
+ordered_json reduction_json(const SurfaceResult& result) {
+  if (!result.reduction) return nullptr;
+  const ReductionSummary& r = *result.reduction;
+  return {{"target_triangles", r.target_triangles > 0 ? ordered_json(r.target_triangles)
+                                                      : ordered_json(nullptr)},
+          {"triangles", r.triangles},
+          {"bound_mm", r.bound_mm},
+          {"cap_mm", r.cap_mm},
+          {"target_met", r.target_met},
+          {"extractions", r.extractions}};
+}
+
+ordered_json distance_json(const SurfaceResult& result) {
+  if (!result.distance) return nullptr;
+  const DistanceSummary& d = *result.distance;
+  auto optional = [](const std::optional<double>& v) {
+    return v ? ordered_json(*v) : ordered_json(nullptr);
+  };
+  return {{"max_mm", d.max_mm},
+          {"mean_mm", d.mean_mm},
+          {"finished_max_mm", optional(d.finished_max_mm)},
+          {"finished_mean_mm", optional(d.finished_mean_mm)}};
+}
+
 ordered_json check_json(const core::MeshCheck& check) {
   return {{"closed_manifold", check.closed_manifold()},
           {"boundary_edges", check.boundary_edges},
@@ -257,7 +298,7 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
       ->excludes(hollow);
   command->add_flag("--check-intersections", options.check_intersections,
                     "Count crossing triangle pairs (exact) in each output and in the report; "
-                    "a smoothing or reduction step that adds crossings is undone");
+                    "a smoothing step that adds crossings is undone");
   command->add_option("--finish", options.finish,
                       "default: the preset's clean-up; none: the extractor's surface unchanged")
       ->check(CLI::IsMember({"default", "none"}));
@@ -271,15 +312,16 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
                       "Taubin smoothing iterations (volume-preserving; default 0)")
       ->check(CLI::Range(0, 1000));
   command->add_option("--reduce-to", options.finish_options.reduce_to_triangles,
-                      "Further reduce to this many triangles (quadric decimation)");
+                      "Type merging to at most this many triangles (and at least 99 % of it) "
+                      "within the smallest bound that gives them, up to --max-error or 5 voxel "
+                      "steps; every guarantee kept")
+      ->check(CLI::PositiveNumber);
   command->add_option("--max-error", options.finish_options.max_error_mm,
-                      "Error bound of that reduction in mm (default 0.1 when reducing)")
-      ->check(CLI::NonNegativeNumber);
-  command->add_option("--decimator", options.finish_options.decimator,
-                      "Library of that reduction: openmesh (default; its bound holds at the "
-                      "input's vertices by construction) or meshopt (meshoptimizer, checked "
-                      "after, OpenMesh when a check fails)")
-      ->check(CLI::IsMember({"openmesh", "meshopt"}));
+                      "Type merging within this distance in mm of the voxels' marching-cubes "
+                      "surface, two-sided over both surfaces (default: half a voxel)")
+      ->check(CLI::PositiveNumber);
+  command->add_option("--decimator", options.removed_decimator,
+                      "Removed: --reduce-to and --max-error are type merging itself now");
   command->add_option("--denoise", options.denoise, "Denoise first: none, gaussian, median, bilateral")
       ->check(CLI::IsMember({"none", "gaussian", "median", "bilateral"}));
   command->add_option("--voxel-size", options.voxel_size_mm,
@@ -316,13 +358,14 @@ ConversionShape conversion_shape(const ConvertOptions& options) {
   const std::vector<SurfaceSpec> specs = surface_specs(options);
   shape.surfaces = specs.size();
   for (const SurfaceSpec& spec : specs) shape.window_surfaces += spec.hi.has_value() ? 1 : 0;
-  shape.reduces = options.finish != "none" && (options.finish_options.reduce_to_triangles > 0 ||
-                                               options.finish_options.max_error_mm > 0);
+  shape.reduces = options.finish_options.reduce_to_triangles > 0 ||
+                  options.finish_options.max_error_mm > 0;
   shape.hollows = options.hollow_mm > 0;
   return shape;
 }
 
 int run_convert(const ConvertOptions& options, std::ostream& log) {
+  check_reduction_options(options);
   if (label_mode_requested(options)) return run_label_convert(options, log);
   const auto run_start = Clock::now();
   // Progress for people at a terminal; scripts and logs (stderr not a TTY) get only results.
@@ -468,6 +511,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   pipeline.check_intersections = options.check_intersections;
   pipeline.hollow_mm = options.hollow_mm;
   pipeline.finish.enabled = options.finish != "none";
+  pipeline.measure_distance = !options.report.empty();
   pipeline.finish.min_component_mm3 = options.min_component_mm3;
   if (options.fill_cavities) pipeline.finish.fill_cavities = true;
   report["parameters"] = {{"algorithm", options.algorithm},
@@ -476,7 +520,6 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                           {"smooth_iterations", pipeline.finish.smooth_iterations},
                           {"reduce_to", pipeline.finish.reduce_to_triangles},
                           {"max_error_mm", pipeline.finish.max_error_mm},
-                          {"decimator", pipeline.finish.decimator},
                           {"check_intersections", options.check_intersections},
                           {"hollow_mm", options.hollow_mm > 0 ? ordered_json(options.hollow_mm)
                                                               : ordered_json(nullptr)}};
@@ -640,6 +683,8 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
                         {"area_mm2", final_check.area},
                         {"bounding_box_lps_mm", {box.min, box.max}},
                         {"hollow", hollow},
+                        {"reduction", reduction_json(result)},
+                        {"distance_to_marching_cubes", distance_json(result)},
                         {"validity", check_json(final_check)},
                         {"self_intersecting_pairs",
                          crossings[s] ? ordered_json(*crossings[s]) : ordered_json(nullptr)},
@@ -651,9 +696,20 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
         : *crossings[s] == 0
             ? ", no crossing triangles"
             : ", " + std::to_string(*crossings[s]) + " CROSSING pair(s)";
-    char line[512];
-    std::snprintf(line, sizeof line, "%s: %zu triangles, %.1f mL, %s%s%s, written to %s\n",
-                  spec.label.c_str(), result.mesh.triangles.size(), final_check.volume / 1000.0,
+    std::string reduction_text;
+    if (result.reduction && result.reduction->target_triangles > 0) {
+      char text[160];
+      std::snprintf(text, sizeof text, ", within %.3g mm%s", result.reduction->bound_mm,
+                    result.reduction->target_met ? "" : " (--reduce-to NOT MET)");
+      reduction_text = text;
+    } else if (result.reduction) {
+      reduction_text = ", within " + preprocess::detail::format_number(result.reduction->bound_mm) +
+                       " mm";
+    }
+    char line[640];
+    std::snprintf(line, sizeof line, "%s: %zu triangles%s, %.1f mL, %s%s%s, written to %s\n",
+                  spec.label.c_str(), result.mesh.triangles.size(), reduction_text.c_str(),
+                  final_check.volume / 1000.0,
                   final_check.closed_manifold() ? "closed manifold" : "NOT closed manifold",
                   crossing_text.c_str(), hollow_text.c_str(), output.string().c_str());
     log << line;

@@ -44,6 +44,7 @@ struct ConvertOptions {
   bool show_descriptions = false;  // put the free-text SeriesDescription in the report
   bool check_intersections = false;  // count crossing triangle pairs of each output (CGAL)
   double hollow_mm = 0;  // > 0: hollow each surface to a shell of this wall thickness
+  std::string removed_decimator;  // --decimator, refused with a message naming its replacement
   // Label mode (app/label_mode.h): "all" or "N[,N...]"; a label table; the mask's Gaussian sigma.
   std::string labels;
   std::string label_names;

@@ -6,13 +6,14 @@
 #include <cstdio>
 #include <optional>
 
+#include "core/bounded_reduction.h"
 #include "core/inner_wall.h"
 #include "core/marching_cubes.h"
+#include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "core/type_merging.h"
 #include "core/window_field.h"
 #include "mesh/components.h"
-#include "mesh/decimation.h"
 #include "mesh/smoothing.h"
 #include "mesh/validity.h"
 
@@ -20,6 +21,10 @@ namespace typemerge::app {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Sample spacing of the reported distances: a barycentric lattice this fine puts more than one
+// point on every mm² of each surface.
+constexpr double kDistanceSpacingMm = 0.7;
 
 std::string number(double value) {
   char text[32];
@@ -137,6 +142,7 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                            const PipelineOptions& options) {
   SurfaceResult result;
+  core::TriangleMesh marching_cubes;  // for measure_distance, with tm
   core::ExtractOptions extract;
   extract.close_borders = options.close_borders;
   extract.threads = options.threads;
@@ -157,23 +163,76 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     const core::Volume& source = window ? field : volume;
     const float iso = window ? 0.0f : static_cast<float>(spec.lo);
     Details details;
+    const FinishOptions& finish = options.finish;
     if (options.algorithm == "tm") {
       core::MergeStats stats;
-      mesh = core::extract_type_merged(source, iso, extract, {}, &stats);
+      if (finish.reduce_to_triangles > 0) {
+        const core::IndexToPatient& g = volume.geometry();
+        const double cap =
+            finish.max_error_mm > 0
+                ? finish.max_error_mm
+                : core::kReductionCapSteps * std::min({g.spacing(0), g.spacing(1), g.spacing(2)});
+        core::ReductionResult reduced = core::extract_type_merged_to_count(
+            source, iso, extract, {}, finish.reduce_to_triangles, cap);
+        mesh = std::move(reduced.mesh);
+        stats = reduced.stats;
+        result.reduction = ReductionSummary{finish.reduce_to_triangles, mesh.triangles.size(),
+                                            reduced.bound_mm, cap, reduced.target_met,
+                                            reduced.tries};
+        if (!reduced.target_met) {
+          result.warnings.push_back(
+              "--reduce-to " + std::to_string(finish.reduce_to_triangles) + " not met: " +
+              std::to_string(mesh.triangles.size()) + " triangles within " +
+              number(reduced.bound_mm) + " mm (the bound's cap is " + number(cap) + " mm)");
+        }
+      } else {
+        core::MergeOptions merge;
+        merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
+        mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
+        if (finish.max_error_mm > 0) {
+          result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,
+                                              finish.max_error_mm, true, 1};
+        }
+      }
       std::size_t disks = 0;
       for (std::size_t n : stats.blocks_merged) disks += n;
       details = {{"mc_triangles", std::to_string(stats.triangles_before)},
                  {"merged_disks", std::to_string(disks)},
                  {"face_vertices_thinned",
                   std::to_string(stats.face_vertices_removed - stats.face_vertices_restored)}};
+      if (result.reduction) {
+        details.emplace_back("bound_mm", number(result.reduction->bound_mm));
+        details.emplace_back("extractions", std::to_string(result.reduction->extractions));
+      }
     } else {
       mesh = core::extract_isosurface(source, iso, extract);
     }
     core::to_patient(mesh, volume.geometry());
+    if (options.measure_distance) {
+      if (options.algorithm == "tm") {
+        marching_cubes = core::extract_isosurface(source, iso, extract);
+        core::to_patient(marching_cubes, volume.geometry());
+        const auto d = core::surface_distance(marching_cubes, mesh, kDistanceSpacingMm,
+                                              options.threads);
+        result.distance = DistanceSummary{d.hausdorff(), d.mean(), std::nullopt, std::nullopt};
+      } else {
+        result.distance = DistanceSummary{};  // it is marching cubes' surface
+      }
+    }
     return StepOutput{details, std::nullopt};
   });
 
-  if (options.finish.enabled && !result.mesh.empty()) finish_surface(result, spec, options);
+  if (options.finish.enabled && !result.mesh.empty()) {
+    finish_surface(result, spec, options);
+    if (result.distance && !marching_cubes.empty() && result.steps.size() > 1) {
+      // The finished surface's samples against marching cubes' surface.
+      const core::TriangleMesh samples = core::surface_samples(result.mesh, kDistanceSpacingMm);
+      const auto d = core::vertex_to_mesh_distance(samples, marching_cubes, options.threads);
+      result.distance->finished_max_mm = d.max;
+      result.distance->finished_mean_mm = d.mean;
+    }
+  }
+  marching_cubes = {};
   if (options.hollow_mm > 0 && !result.mesh.empty()) hollow_surface(result, volume, spec, options);
   const bool finished = (options.finish.enabled || options.hollow_mm > 0) && !result.mesh.empty();
   if (finished && !result.steps.back().check.closed_manifold()) {
@@ -226,40 +285,6 @@ void finish_surface(SurfaceResult& result, const SurfaceSpec& spec, const Pipeli
                         report.validity.check};
     });
   }
-  if (finish.reduce_to_triangles > 0 || finish.max_error_mm > 0) {
-    run_moving_step(result, "quadric decimation", options.threads,
-                    options.check_intersections, crossings,
-                    [&](core::TriangleMesh& mesh) {
-      mesh::DecimationOptions decimation;
-      decimation.target_triangles = finish.reduce_to_triangles;
-      if (finish.max_error_mm > 0) decimation.max_error = finish.max_error_mm;
-      decimation.decimator = finish.decimator == "meshopt" ? mesh::Decimator::meshopt
-                                                            : mesh::Decimator::openmesh;
-      decimation.threads = options.threads;
-      const auto report = mesh::decimate_mesh(mesh, decimation);
-      for (const auto& w : report.warnings) result.warnings.push_back("decimation: " + w);
-      Details details{{"triangles_before", std::to_string(report.triangles_before)},
-                      {"max_error_mm", number(report.max_error)},
-                      {"reached_target", report.reached_target ? "yes" : "no"},
-                      {"decimator_asked", finish.decimator},
-                      {"decimator", mesh::to_string(report.decimator)}};
-      if (decimation.decimator == mesh::Decimator::meshopt) {
-        details.emplace_back("meshopt_passes", std::to_string(report.meshopt.passes));
-        details.emplace_back("meshopt_ms", number(report.meshopt.simplify_ms));
-        details.emplace_back("meshopt_check_ms", number(report.meshopt.check_ms));
-        details.emplace_back("meshopt_kept_triangles",
-                             std::to_string(report.meshopt.kept_triangles));
-        if (report.meshopt.sampled_error >= 0) {
-          details.emplace_back("meshopt_sampled_error_mm", number(report.meshopt.sampled_error));
-        }
-        for (const auto& note : report.meshopt.notes) details.emplace_back("meshopt_pass", note);
-        if (!report.fallback.empty()) details.emplace_back("fallback", report.fallback);
-      }
-      if (report.openmesh_ms > 0) details.emplace_back("openmesh_ms", number(report.openmesh_ms));
-      return StepOutput{std::move(details),
-                        report.validity.check};
-    });
-  }
 }
 
 // The inner wall at options.hollow_mm inside the finished surface, appended as a cavity.
@@ -279,12 +304,11 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
     wall.fill_enclosed = options.finish.enabled &&
                          options.finish.fill_cavities.value_or(spec.fill_cavities);
     // How far the finished surface may be from the voxels' marching cubes: type merging's
-    // half voxel and a light smoothing within one voxel, plus the decimation's bound.
+    // bound (its default half voxel, or the reduction's bound in mm) and a light smoothing
+    // within one voxel.
     const auto& g = volume.geometry();
     wall.outer_deviation_mm = std::max({g.spacing(0), g.spacing(1), g.spacing(2)}) +
-                              (options.finish.reduce_to_triangles > 0 || options.finish.max_error_mm > 0
-                                   ? std::max(options.finish.max_error_mm, 0.1)
-                                   : 0.0);
+                              (result.reduction ? result.reduction->bound_mm : 0.0);
     const double outer_volume = result.steps.back().check.volume;
     core::InnerWallStats stats;
     const core::TriangleMesh inner = core::extract_inner_wall(source, iso, mesh, wall, &stats);

@@ -37,9 +37,13 @@ struct FinishOptions {
   bool keep_largest = false;
   std::optional<bool> fill_cavities;         // overrides the preset's
   int smooth_iterations = 0;                 // Taubin; 0 = off
-  std::size_t reduce_to_triangles = 0;       // quadric decimation target; 0 = off
-  double max_error_mm = 0.0;                 // decimation error bound; 0 = off
-  std::string decimator = "openmesh";        // openmesh | meshopt (mesh/decimation.h)
+  // --reduce-to / --max-error: type merging's own reduction, applied at extraction (so with
+  // enabled false too), algorithm tm only (core/bounded_reduction.h). reduce_to_triangles: the
+  // smallest bound in mm up to the cap (max_error_mm if given, else kReductionCapSteps × the
+  // finest voxel step) giving 0.99 N to N triangles; max_error_mm alone: the merge within that
+  // bound. 0 = not given.
+  std::size_t reduce_to_triangles = 0;
+  double max_error_mm = 0.0;
 };
 
 struct PipelineOptions {
@@ -50,6 +54,9 @@ struct PipelineOptions {
   // Count crossing triangle pairs (core/self_intersections.h) after every finishing step that
   // moves vertices (smoothing, decimation) and undo a step that adds any.
   bool check_intersections = false;
+  // Measure each surface's two-sided distance to marching cubes' surface on the same grid
+  // (sampled over both surfaces, ≥ 1 point per mm²), for --report: SurfaceResult::distance.
+  bool measure_distance = false;
   // --hollow MM: after the finishing steps, the inner wall at MM inside the surface is added
   // as a cavity (core/inner_wall.h); 0 = solid.
   double hollow_mm = 0;
@@ -74,9 +81,31 @@ struct HollowSummary {
   std::size_t dropped_small = 0;
 };
 
+// What --reduce-to / --max-error did.
+struct ReductionSummary {
+  std::size_t target_triangles = 0;  // 0: a bound alone
+  std::size_t triangles = 0;         // what the extraction made
+  double bound_mm = 0.0;             // the bound it was made within
+  double cap_mm = 0.0;               // the largest bound the count could use
+  bool target_met = true;            // 0.99 N <= triangles <= N (true for a bound alone)
+  std::size_t extractions = 1;
+};
+
+// Sampled distances (mm) to marching cubes' surface on the same grid.
+struct DistanceSummary {
+  double max_mm = 0.0;   // two-sided, of the extracted surface
+  double mean_mm = 0.0;  // mean over the samples of both surfaces
+  // From the finished surface (after smoothing and component removal) to marching cubes'
+  // surface, one-sided (removed components would count the other way); when it was finished.
+  std::optional<double> finished_max_mm;
+  std::optional<double> finished_mean_mm;
+};
+
 struct SurfaceResult {
   core::TriangleMesh mesh;  // LPS mm
   std::optional<HollowSummary> hollow;
+  std::optional<ReductionSummary> reduction;
+  std::optional<DistanceSummary> distance;
   std::vector<StepSummary> steps;
   std::vector<std::string> warnings;
 };

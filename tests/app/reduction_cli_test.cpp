@@ -1,0 +1,216 @@
+// --reduce-to and --max-error through the executable: every row of the README's table of what
+// they mean together (type merging within a bound in mm, to a count, the cap, refusals).
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "ct_writer/ct_writer.h"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct CommandRun {
+  int exit_code = -1;
+  std::string out;
+};
+
+CommandRun run(const std::string& arguments) {
+  const std::string command = std::string(TYPEMERGE_EXE) + " " + arguments + " 2>&1";
+  CommandRun result;
+  FILE* pipe = popen(command.c_str(), "r");
+  std::array<char, 4096> buffer{};
+  while (std::size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) {
+    result.out.append(buffer.data(), n);
+  }
+  const int status = pclose(pipe);
+  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() /
+                       ("typemerge_reduction_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// A 40 × 36 × 16 CT of 0.9 × 0.9 × 2.5 mm voxels: soft tissue (40 HU) in an ellipsoid body
+// holding two bone-like lumps (700 HU) of wavy outline, in air.
+const fs::path& body_series() {
+  static const fs::path dir = [] {
+    const fs::path d = fresh_dir("series");
+    typemerge::ct_writer::SeriesLayout layout;
+    layout.uid_seed = "reduction";
+    layout.columns = 40;
+    layout.rows = 36;
+    layout.slices = 16;
+    layout.pixel_spacing = {0.9, 0.9};
+    layout.slice_spacing = 2.5;
+    layout.hu = [](int i, int j, int k) {
+      const double body = std::hypot((i - 19.5) / 17.0, (j - 17.5) / 15.0, (k - 7.5) / 9.0);
+      const double wave = 1.5 * std::sin(0.7 * i) * std::cos(0.5 * j);
+      const double a = std::hypot(i - 13.0, j - 15.0, (k - 7.0) * 2.5) + wave;
+      const double b = std::hypot(i - 27.0, j - 20.0, (k - 8.0) * 2.5) - wave;
+      if (a < 7.0 || b < 6.0) return 700.0;
+      return body < 1.0 ? 40.0 : -1000.0;
+    };
+    const auto specs = typemerge::ct_writer::make_axial_series(layout);
+    for (std::size_t k = 0; k < specs.size(); ++k) {
+      typemerge::ct_writer::write_ct_slice(specs[k], d / ("s" + std::to_string(k)));
+    }
+    return d;
+  }();
+  return dir;
+}
+
+json read_json(const fs::path& file) {
+  std::ifstream in(file);
+  return json::parse(in);
+}
+
+// convert with a report; returns the report's first surface (exit code checked).
+json convert(const std::string& options, const std::string& name, int expected_exit = 0,
+             std::string* out = nullptr) {
+  const fs::path dir = fresh_dir(name);
+  const CommandRun r = run("convert " + body_series().string() + " " + options + " -o " +
+                           (dir / "out.stl").string() + " --report " +
+                           (dir / "report.json").string());
+  if (out != nullptr) *out = r.out;
+  EXPECT_EQ(r.exit_code, expected_exit) << r.out;
+  if (r.exit_code != 0) return nullptr;
+  return read_json(dir / "report.json")["surfaces"][0];
+}
+
+std::size_t extracted_triangles(const json& surface) {
+  return surface["steps"][0]["triangles"].get<std::size_t>();
+}
+
+TEST(Reduction, MaxErrorAloneIsTypeMergingWithinThatBound) {
+  const json plain = convert("--iso 300 --finish none", "plain");
+  const json bounded = convert("--iso 300 --finish none --max-error 2", "bounded");
+  ASSERT_FALSE(bounded.is_null());
+  EXPECT_EQ(bounded["reduction"]["bound_mm"].get<double>(), 2.0);
+  EXPECT_TRUE(bounded["reduction"]["target_met"].get<bool>());
+  EXPECT_LE(bounded["distance_to_marching_cubes"]["max_mm"].get<double>(), 2.0 + 1e-3);
+  EXPECT_GT(bounded["distance_to_marching_cubes"]["mean_mm"].get<double>(), 0.0);
+  EXPECT_TRUE(bounded["validity"]["closed_manifold"].get<bool>());
+  EXPECT_LT(extracted_triangles(bounded), extracted_triangles(plain));
+  // Without the options the surface has no reduction entry, and its distance is still reported.
+  EXPECT_TRUE(plain["reduction"].is_null());
+  EXPECT_LE(plain["distance_to_marching_cubes"]["max_mm"].get<double>(), 0.5 * 2.5 + 1e-3);
+}
+
+TEST(Reduction, ReduceToAloneMeetsTheCountWithinOnePercent) {
+  const json plain = convert("--iso 300 --finish none", "count_plain");
+  const auto target = static_cast<std::size_t>(0.6 * double(extracted_triangles(plain)));
+  const json reduced = convert("--iso 300 --finish none --reduce-to " + std::to_string(target),
+                               "count");
+  ASSERT_FALSE(reduced.is_null());
+  const std::size_t n = extracted_triangles(reduced);
+  EXPECT_LE(n, target);
+  EXPECT_GE(double(n), 0.99 * double(target));
+  EXPECT_TRUE(reduced["reduction"]["target_met"].get<bool>());
+  EXPECT_EQ(reduced["reduction"]["target_triangles"].get<std::size_t>(), target);
+  const double bound = reduced["reduction"]["bound_mm"].get<double>();
+  EXPECT_LE(bound, reduced["reduction"]["cap_mm"].get<double>());
+  EXPECT_DOUBLE_EQ(reduced["reduction"]["cap_mm"].get<double>(), 5 * 0.9);  // 5 finest steps
+  EXPECT_LE(reduced["distance_to_marching_cubes"]["max_mm"].get<double>(), bound + 1e-3);
+  EXPECT_TRUE(reduced["validity"]["closed_manifold"].get<bool>());
+}
+
+TEST(Reduction, BothGiveTheCountNeverBeyondTheBoundAndTheBoundWins) {
+  std::string out;
+  const json r = convert("--iso 300 --finish none --reduce-to 20 --max-error 0.8", "both", 0, &out);
+  ASSERT_FALSE(r.is_null());
+  EXPECT_FALSE(r["reduction"]["target_met"].get<bool>());
+  EXPECT_EQ(r["reduction"]["bound_mm"].get<double>(), 0.8);
+  EXPECT_EQ(r["reduction"]["cap_mm"].get<double>(), 0.8);
+  EXPECT_GT(extracted_triangles(r), 20u);
+  EXPECT_LE(r["distance_to_marching_cubes"]["max_mm"].get<double>(), 0.8 + 1e-3);
+  // The count not reached: on the summary line, among the warnings, exit code 0.
+  EXPECT_NE(out.find("--reduce-to NOT MET"), std::string::npos) << out;
+  EXPECT_NE(out.find("warning: iso: --reduce-to 20 not met"), std::string::npos) << out;
+  EXPECT_FALSE(r["warnings"].empty());
+}
+
+TEST(Reduction, EveryPresetSurfaceGetsTheCount) {
+  const fs::path dir = fresh_dir("presets");
+  const CommandRun r = run("convert " + body_series().string() +
+                           " --preset bone,skin --min-component 1 --reduce-to 400 -o " +
+                           dir.string() + " --report " + (dir / "report.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const json report = read_json(dir / "report.json");
+  ASSERT_EQ(report["surfaces"].size(), 2u);
+  for (const json& surface : report["surfaces"]) {
+    EXPECT_EQ(surface["reduction"]["target_triangles"].get<std::size_t>(), 400u)
+        << surface["name"];
+    EXPECT_LE(surface["reduction"]["triangles"].get<std::size_t>(), 400u) << surface["name"];
+  }
+}
+
+TEST(Reduction, MarchingCubesAlgorithmsRefuseThem) {
+  for (const char* algorithm : {"mc", "classic"}) {
+    for (const char* option : {"--max-error 1", "--reduce-to 100"}) {
+      const CommandRun r = run("convert " + body_series().string() + " --iso 300 --algorithm " +
+                               algorithm + " " + option + " -o " +
+                               (fresh_dir("refused") / "x.stl").string());
+      EXPECT_EQ(r.exit_code, 2) << r.out;
+      EXPECT_NE(r.out.find("unreduced"), std::string::npos) << r.out;
+    }
+  }
+}
+
+TEST(Reduction, FinishNoneStillReduces) {
+  const json none = convert("--preset bone --finish none --max-error 1.5", "finish_none");
+  ASSERT_FALSE(none.is_null());
+  EXPECT_EQ(none["steps"].size(), 1u);  // extraction only
+  EXPECT_EQ(none["reduction"]["bound_mm"].get<double>(), 1.5);
+  EXPECT_LE(none["distance_to_marching_cubes"]["max_mm"].get<double>(), 1.5 + 1e-3);
+}
+
+TEST(Reduction, SmoothingIsMeasuredAfterTheBound) {
+  const json smoothed = convert("--iso 300 --max-error 1 --smooth 10", "smooth");
+  ASSERT_FALSE(smoothed.is_null());
+  const json& d = smoothed["distance_to_marching_cubes"];
+  EXPECT_LE(d["max_mm"].get<double>(), 1.0 + 1e-3);  // before smoothing: the bound
+  ASSERT_FALSE(d["finished_max_mm"].is_null());    // after: measured
+  EXPECT_GT(d["finished_max_mm"].get<double>(), 0.0);
+}
+
+TEST(Reduction, HollowUsesTheReducedSurface) {
+  const json hollow = convert("--preset skin --max-error 1 --hollow 3", "hollow");
+  ASSERT_FALSE(hollow.is_null());
+  EXPECT_TRUE(hollow["validity"]["closed_manifold"].get<bool>());
+  EXPECT_FALSE(hollow["hollow"].is_null());
+  EXPECT_EQ(hollow["reduction"]["bound_mm"].get<double>(), 1.0);
+}
+
+TEST(Reduction, DecimatorIsRemovedWithAMessageNamingTheReplacement) {
+  const CommandRun r = run("convert " + body_series().string() +
+                           " --iso 300 --reduce-to 100 --decimator meshopt -o " +
+                           (fresh_dir("decimator") / "x.stl").string());
+  EXPECT_EQ(r.exit_code, 2) << r.out;
+  EXPECT_NE(r.out.find("--decimator was removed"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("type merging"), std::string::npos) << r.out;
+}
+
+TEST(Reduction, BadValuesAreRefused) {
+  for (const char* option : {"--max-error 0", "--max-error -1", "--reduce-to 0", "--reduce-to x"}) {
+    const CommandRun r = run("convert " + body_series().string() + " --iso 300 " + option +
+                             " -o " + (fresh_dir("bad") / "x.stl").string());
+    EXPECT_EQ(r.exit_code, 2) << option << ": " << r.out;
+  }
+}
+
+}  // namespace
