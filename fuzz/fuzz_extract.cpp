@@ -8,7 +8,10 @@
 //  * type merging, in pieces of 1 to 4 layers and blocks of 2 to 8 cubes (shaped by one of
 //    four spacings), keeps those guarantees and the Euler characteristic and number of
 //    components of the marching-cubes mesh it merges, and stays within epsilon of it
-//    (sampled over both surfaces);
+//    (sampled over both surfaces); with a bound in millimetres (blocks up to 32 cubes, also on
+//    a sheared grid), within that bound in patient mm; reduced to a triangle count, its count
+//    in the window when said met, the topology kept, within the bound it reports, no
+//    crossings;
 //  * threads > 1 give the serial output exactly (extraction and type merging);
 //  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
@@ -19,6 +22,7 @@
 #include <cstdlib>
 #include <limits>
 
+#include "core/bounded_reduction.h"
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
@@ -85,6 +89,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const unsigned scheme = settings & 3;
   const bool close_borders = (settings & 4) == 0;
   const bool try_threads = (settings & 8) != 0;
+  // A bound in millimetres (MergeOptions::epsilon_mm), on a sheared grid when bit 5 is set;
+  // bit 6: a triangle count (extract_type_merged_to_count) on top.
+  const bool in_mm = (settings & 16) != 0;
+  const bool sheared = (settings & 32) != 0;
+  const bool to_count = (settings & 64) != 0;
   const VolumeSize volume_size{in.pick(9), in.pick(9), in.pick(9)};
   // Spacings that shape type merging's blocks (MergeOptions::blocks_follow_spacing): even,
   // thick slices, coarse rows and columns, and three different steps.
@@ -92,7 +101,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       {{1.0, 1.0, 1.0}, {0.7, 0.7, 3.0}, {3.2, 3.2, 1.5}, {0.5, 1.0, 2.5}}};
   const std::array<double, 3>& step = kSpacings[in.pick(4)];
   IndexToPatient geometry;
-  geometry.axes = {{{step[0], 0, 0}, {0, step[1], 0}, {0, 0, step[2]}}};
+  geometry.axes = {{{step[0], 0, 0}, {0, step[1], 0}, {0, sheared ? 0.4 * step[2] : 0, step[2]}}};
   Volume volume(volume_size, geometry);
   const float iso = sample(in, scheme) + (in.flag() ? 0.5f : 0.0f);
   for (float& v : volume.samples()) v = sample(in, scheme);
@@ -121,7 +130,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // Pieces of 1 to 4 cube layers: most vertices lie on or near a seam.
   MergeOptions merge;
   merge.slab_layers = 1 + static_cast<unsigned>(in.pick(4));
-  merge.block_cubes = 2u << in.pick(3);
+  merge.block_cubes = 2u << in.pick(in_mm ? 5 : 3);
+  constexpr std::array<double, 4> kBoundsMm{0.3, 1.0, 2.5, 6.0};
+  if (in_mm) merge.epsilon_mm = kBoundsMm[in.pick(4)];
   const TriangleMesh tm = extract_type_merged(volume, iso, options, merge);
   check_indices(tm);
   if (try_threads) {
@@ -137,8 +148,45 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
                         tm_check.components != mc_check.components)) {
     violated("type merging changed the topology");
   }
-  if (!mc.empty() && surface_distance(mc, tm, 0.25, 1).hausdorff() > merge.epsilon_voxels + 1e-4) {
+  if (!in_mm && !mc.empty() &&
+      surface_distance(mc, tm, 0.25, 1).hausdorff() > merge.epsilon_voxels + 1e-4) {
     violated("type merging left the marching-cubes surface by more than epsilon");
+  }
+  if (in_mm && !mc.empty()) {
+    TriangleMesh mc_mm = mc;
+    TriangleMesh tm_mm = tm;
+    to_patient(mc_mm, geometry);
+    to_patient(tm_mm, geometry);
+    if (surface_distance(mc_mm, tm_mm, 0.25, 1).hausdorff() > merge.epsilon_mm + 1e-3) {
+      violated("type merging left the marching-cubes surface by more than its bound in mm");
+    }
+  }
+  if (to_count && !mc.empty() && close_borders) {
+    const std::size_t target = 1 + in.pick(static_cast<unsigned>(
+                                       std::min<std::size_t>(mc.triangles.size(), 255)));
+    const ReductionResult r =
+        extract_type_merged_to_count(volume, iso, options, merge, target, kBoundsMm[in.pick(4)]);
+    check_indices(r.mesh);
+    const MeshCheck r_check = check_mesh(r.mesh);
+    check_sound(r_check, close_borders, "reduced to a count");
+    if (r.target_met && (r.mesh.triangles.size() > target ||
+                         double(r.mesh.triangles.size()) < 0.99 * double(target))) {
+      violated("a count said met is outside its window");
+    }
+    if (r_check.euler_characteristic != mc_check.euler_characteristic ||
+        r_check.components != mc_check.components) {
+      violated("reduction to a count changed the topology");
+    }
+    TriangleMesh mc_mm = mc;
+    TriangleMesh r_mm = r.mesh;
+    to_patient(mc_mm, geometry);
+    to_patient(r_mm, geometry);
+    if (surface_distance(mc_mm, r_mm, 0.25, 1).hausdorff() > r.bound_mm + 1e-3) {
+      violated("reduction to a count left the marching-cubes surface by more than its bound");
+    }
+    if (!find_self_intersections(r.mesh).pairs.empty()) {
+      violated("reduction to a count made crossing triangles");
+    }
   }
   // No two triangles cross (exact predicates): both by construction (cubes, blocks).
   if (!find_self_intersections(mc).pairs.empty()) violated("marching cubes made crossing triangles");

@@ -12,7 +12,8 @@ namespace typemerge::app {
 
 // What a conversion holds besides its grid, from its options: the surfaces are made at once,
 // each with its mesh and extraction state; a window preset (a `hi` bound) meshes a field, one
-// more volume of floats; --reduce-to / --max-error copy the mesh into OpenMesh; --hollow holds
+// more volume of floats; --reduce-to holds the search's best surface beside the one being made
+// (and --report the marching-cubes surface its distance is measured against); --hollow holds
 // a distance field per surface.
 struct ConversionShape {
   std::size_t surfaces = 1;
