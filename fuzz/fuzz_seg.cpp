@@ -47,6 +47,12 @@ void remove_scratch_file() {
 
 }  // namespace
 
+// The reader allocates and frees a file-sized pixel buffer per input; with ASan's default 256 MiB
+// quarantine (plus what the allocator keeps) the process grew by ~3 KiB per input, toward
+// libFuzzer's 2 GiB RSS limit in a 10-minute run, with no leak (flat at 97 MB for 60,000 inputs
+// with a 1 MiB quarantine). A smaller quarantine keeps the RSS limit meaningful.
+extern "C" const char* __asan_default_options() { return "quarantine_size_mb=32"; }
+
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
   typemerge::dicom::silence_dcmtk_log();
   std::atexit(remove_scratch_file);
