@@ -282,11 +282,13 @@ void read_report(const fs::path& report, const std::string& name, StudyOutcome& 
     for (const auto& w : step.at("warnings")) outcome.warnings.push_back(w.get<std::string>());
   }
   for (const auto& s : json.at("surfaces")) {
+    const bool met = !s.contains("reduction") || s.at("reduction").is_null() ||
+                     s.at("reduction").at("target_met").get<bool>();
     outcome.surfaces.push_back({s.at("name").get<std::string>(),
                                 name + "/" + s.at("output").get<std::string>(),
                                 s.at("triangles").get<std::uint64_t>(),
                                 s.at("volume_ml").get<double>(),
-                                s.at("validity").at("closed_manifold").get<bool>()});
+                                s.at("validity").at("closed_manifold").get<bool>(), met});
     for (const auto& w : s.at("warnings")) {
       outcome.warnings.push_back(s.at("name").get<std::string>() + ": " + w.get<std::string>());
     }
@@ -567,6 +569,9 @@ int BatchRun::run() {
   std::snprintf(line, sizeof line, "batch: %zu converted, %zu up to date, %zu failed",
                 totals.converted, totals.up_to_date, totals.failed);
   log_ << line << folder_counts(totals);
+  if (totals.reduce_to_not_met > 0) {
+    log_ << ", " << totals.reduce_to_not_met << " surface(s) short of --reduce-to";
+  }
   std::snprintf(line, sizeof line, "%s in %.1f s; summary in ",
                 g_interrupted ? ", interrupted" : "", seconds_since(start_));
   log_ << line << (out_ / (stem + ".json")).string() << "\n";

@@ -37,7 +37,8 @@ ordered_json to_json(const StudyOutcome& o) {
   for (const SurfaceOutcome& s : o.surfaces) {
     surfaces.push_back({{"surface", s.surface}, {"file", s.file}, {"triangles", s.triangles},
                         {"volume_ml", rounded(s.volume_ml, 0.001)},
-                        {"closed_manifold", s.closed_manifold}});
+                        {"closed_manifold", s.closed_manifold},
+                        {"reduce_to_met", s.reduce_to_met}});
   }
   ordered_json skipped = ordered_json::array();
   for (const SkippedFiles& k : o.skipped) {
@@ -75,7 +76,9 @@ StudyOutcome from_json(const ordered_json& j) {
   for (const auto& s : j.at("surfaces")) {
     o.surfaces.push_back({s.at("surface").get<std::string>(), s.at("file").get<std::string>(),
                           s.at("triangles").get<std::uint64_t>(), s.at("volume_ml").get<double>(),
-                          s.at("closed_manifold").get<bool>()});
+                          s.at("closed_manifold").get<bool>(),
+                          // absent from records made before --reduce-to was type merging's
+                          !s.contains("reduce_to_met") || s.at("reduce_to_met").get<bool>()});
   }
   if (j.contains("warnings")) o.warnings = j.at("warnings").get<std::vector<std::string>>();
   o.seconds = j.at("seconds").get<double>();
@@ -189,6 +192,9 @@ BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes) {
       case StudyStatus::no_study: ++totals.no_study; break;
       case StudyStatus::no_ct: ++totals.no_ct; break;
     }
+    if (o.status == StudyStatus::converted || o.status == StudyStatus::up_to_date) {
+      for (const SurfaceOutcome& s : o.surfaces) totals.reduce_to_not_met += s.reduce_to_met ? 0 : 1;
+    }
   }
   return totals;
 }
@@ -206,7 +212,8 @@ void write_summary(const fs::path& out_root, const std::string& stem,
                        {"failed", totals.failed},
                        {"interrupted", totals.interrupted},
                        {"no_study", totals.no_study},
-                       {"no_ct", totals.no_ct}};
+                       {"no_ct", totals.no_ct},
+                       {"reduce_to_not_met", totals.reduce_to_not_met}};
   json["results"] = ordered_json::array();
   for (const StudyOutcome& o : outcomes) json["results"].push_back(to_json(o));
   write_atomically(out_root / (stem + ".json"), json.dump(2) + "\n");

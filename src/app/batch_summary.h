@@ -17,6 +17,7 @@ struct SurfaceOutcome {
   std::uint64_t triangles = 0;
   double volume_ml = 0;
   bool closed_manifold = false;
+  bool reduce_to_met = true;  // false: convert's --reduce-to count was not reached
 };
 
 // no_study and no_ct are folders, not studies: files no study came of; no_study counts as a
@@ -53,6 +54,7 @@ StudyOutcome outcome_from_json(const std::string& json);  // throws std::runtime
 struct BatchTotals {
   std::size_t converted = 0, up_to_date = 0, failed = 0, interrupted = 0;
   std::size_t no_study = 0, no_ct = 0;  // folders
+  std::size_t reduce_to_not_met = 0;    // surfaces of converted or up-to-date studies
   std::size_t studies() const { return converted + up_to_date + failed + interrupted; }
 };
 BatchTotals totals_of(const std::vector<StudyOutcome>& outcomes);

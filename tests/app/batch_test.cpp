@@ -511,3 +511,30 @@ TEST(Batch, BadArgumentsExitWithTwo) {
 }
 
 }  // namespace
+
+namespace {
+
+// --reduce-to through batch: a count out of reach is counted in the summary and on the last
+// line; outputs made without it (or with the decimation it used to mean) are not up to date
+// once it is given, and a rerun with it is.
+TEST(Batch, ReduceToMissesAreCountedAndChangeTheKey) {
+  const fs::path out = fresh_dir("batch_reduce") / "out";
+  ASSERT_EQ(run_cli(batch(out)).exit_code, 5);
+  EXPECT_EQ(summary_of(out / "summary.json")["reduce_to_not_met"], 0);
+  const auto reduced = run_cli(batch(out, "--reduce-to 10 --max-error 0.5"));
+  EXPECT_EQ(reduced.exit_code, 5) << reduced.err;
+  const json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["converted"], 3);  // none up to date: the options changed the key
+  EXPECT_EQ(summary["reduce_to_not_met"], 3);
+  for (const auto& r : summary["results"]) {
+    for (const auto& s : r["surfaces"]) EXPECT_FALSE(s["reduce_to_met"].get<bool>());
+  }
+  EXPECT_NE((reduced.out + reduced.err).find("3 surface(s) short of --reduce-to"),
+            std::string::npos)
+      << reduced.out << reduced.err;
+  const auto again = run_cli(batch(out, "--reduce-to 10 --max-error 0.5"));
+  EXPECT_EQ(summary_of(out / "summary.json")["up_to_date"], 3) << again.err;
+  EXPECT_EQ(summary_of(out / "summary.json")["reduce_to_not_met"], 3);
+}
+
+}  // namespace
