@@ -36,9 +36,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       bytes = inflated;
     }
     const nifti::NiftiImage image = nifti::decode_nifti(bytes, options);
-    const auto& size = image.volume.size();
-    if (size.nx < 1 || size.ny < 1 || size.nz < 1 ||
-        image.volume.samples().size() != static_cast<std::size_t>(size.voxels())) {
+    const auto& grid = image.volume.size();
+    if (grid.nx < 1 || grid.ny < 1 || grid.nz < 1 ||
+        image.volume.samples().size() != static_cast<std::size_t>(grid.voxels())) {
       violated("samples do not match the size");
     }
     for (float v : image.volume.samples()) {
