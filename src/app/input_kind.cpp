@@ -1,5 +1,7 @@
 #include "app/input_kind.h"
 
+#include "seg/seg_reader.h"
+
 #include <algorithm>
 #include <cctype>
 #include <string>
@@ -22,6 +24,7 @@ InputKind input_kind(const std::filesystem::path& path) {
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ends_with(name, ".nii") || ends_with(name, ".nii.gz")) return InputKind::nifti;
   if (ends_with(name, ".nrrd") || ends_with(name, ".nhdr")) return InputKind::nrrd;
+  if (seg::is_seg_file(path)) return InputKind::seg;
   return InputKind::dicom;
 }
 
@@ -33,6 +36,8 @@ std::string_view to_string(InputKind kind) {
       return "NIfTI";
     case InputKind::nrrd:
       return "NRRD";
+    case InputKind::seg:
+      return "DICOM SEG";
   }
   return "?";
 }

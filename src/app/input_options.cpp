@@ -118,7 +118,7 @@ LoadedInput load_volume_file_input(const InputOptions& options, const std::strin
   LoadedInput input;
   input.kind = kind;
   dicom::SeriesInfo series;
-  series.id = kind == InputKind::nifti ? "nifti" : "nrrd";
+  series.id = kind == InputKind::nifti ? "nifti" : kind == InputKind::seg ? "seg" : "nrrd";
   series.geometry.slice_step_mm = shape.geometry.spacing(2);
   series.geometry.index_to_patient = shape.geometry;
   if (before_load) {

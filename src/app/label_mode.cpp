@@ -153,6 +153,7 @@ bool label_mode_requested(const ConvertOptions& options) {
   // Only a segmentation file (Slicer's Segment keys) decides by itself; a NIfTI whose intent
   // says "label" is still converted as asked (--iso on a label map is a union of labels).
   const InputKind kind = input_kind(options.input.input);
+  if (kind == InputKind::seg) return true;  // a DICOM SEG holds segments only
   if (kind != InputKind::nrrd) return false;
   std::error_code error;
   if (!fs::is_regular_file(options.input.input, error)) return false;

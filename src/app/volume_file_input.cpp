@@ -1,8 +1,11 @@
 #include "app/volume_file_input.h"
 
+#include <algorithm>
+
 #include "app/exit_codes.h"
 #include "nifti/nifti_reader.h"
 #include "nrrd/nrrd_reader.h"
+#include "seg/seg_reader.h"
 
 namespace typemerge::app {
 
@@ -16,6 +19,14 @@ VolumeFileShape read_volume_file_shape(const std::filesystem::path& path, InputK
       shape.geometry = header.geometry;
       shape.segmentation = header.intent_label;
       shape.type = header.type;
+    } else if (kind == InputKind::seg) {
+      // The label layers are known only once overlaps are found: the estimate counts one.
+      const seg::SegHeader header = seg::read_seg_header(path);
+      shape.format = "DICOM SEG";
+      shape.size = header.size;
+      shape.geometry = header.geometry;
+      shape.segmentation = true;
+      shape.type = volume_file::SampleType::uint16;
     } else {
       const nrrd::NrrdHeader header = nrrd::read_nrrd_header(path);
       shape.format = "NRRD";
@@ -28,6 +39,8 @@ VolumeFileShape read_volume_file_shape(const std::filesystem::path& path, InputK
   } catch (const nifti::ReadError& error) {
     throw CommandError{kExitInputRefused, error.what()};
   } catch (const nrrd::ReadError& error) {
+    throw CommandError{kExitInputRefused, error.what()};
+  } catch (const seg::SegError& error) {
     throw CommandError{kExitInputRefused, error.what()};
   }
   return shape;
@@ -45,6 +58,16 @@ VolumeFile read_volume_file(const std::filesystem::path& path, InputKind kind,
       file.values = image.values;
       file.warnings = std::move(image.warnings);
       file.content.layers.push_back(std::move(image.volume));
+    } else if (kind == InputKind::seg) {
+      seg::SegReadOptions options;
+      options.max_volume_bytes = max_volume_bytes;
+      seg::SegVolume volume = seg::read_seg(path, options);
+      file.warnings = std::move(volume.warnings);
+      file.content = std::move(volume.labels);
+      file.shape.layers = file.content.layers.size();
+      for (const core::Segment& segment : file.content.segments) {
+        file.values.max = std::max(file.values.max, static_cast<float>(segment.label));
+      }
     } else {
       nrrd::ReadOptions options;
       options.max_volume_bytes = max_volume_bytes;
@@ -56,6 +79,8 @@ VolumeFile read_volume_file(const std::filesystem::path& path, InputKind kind,
   } catch (const nifti::ReadError& error) {
     throw CommandError{kExitInputRefused, error.what()};
   } catch (const nrrd::ReadError& error) {
+    throw CommandError{kExitInputRefused, error.what()};
+  } catch (const seg::SegError& error) {
     throw CommandError{kExitInputRefused, error.what()};
   }
   return file;
