@@ -10,10 +10,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <utility>
 
 #include "app/cli_runner.h"
 #include "app/exit_codes.h"
@@ -418,6 +420,34 @@ TEST(LabelModeRealData, SlicerLabelMapTwoLabels) {
     const double voxel_ml = report["labels"][o]["voxel_volume_ml"].get<double>();
     EXPECT_NEAR(core::check_mesh(mesh).volume / 1000.0, voxel_ml, 0.06 * voxel_ml);
   }
+  fs::remove_all(dir);
+}
+
+// The check of the NIfTI geometry on a real series: the abdomen through dcm2niix
+// (which flips the rows: a negative j axis) gives the DICOM folder's mc surface.
+TEST(GreyRealData, Dcm2niixAbdomenGivesTheDicomSurface) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  if (!test::optimised_build()) GTEST_SKIP() << "two abdomen conversions: optimised build only";
+  if (std::system("command -v dcm2niix >/dev/null 2>&1") != 0) GTEST_SKIP() << "no dcm2niix";
+  const fs::path dir = test::fresh_dir("dcm2niix");
+  const fs::path series = data / "ct" / "abdomen";
+  ASSERT_EQ(std::system(("dcm2niix -z y -b n -f abdomen -o " + dir.string() + " " +
+                         series.string() + " >/dev/null 2>&1")
+                            .c_str()),
+            0);
+  for (const auto& [input, output] : {std::pair{series.string(), "dicom.stl"},
+                                      std::pair{(dir / "abdomen.nii.gz").string(), "nifti.stl"}}) {
+    const auto run = run_cli("convert " + input + " --iso 300 --algorithm mc --finish none -o " +
+                             (dir / output).string());
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+  }
+  const core::TriangleMesh dicom = io::read_stl(dir / "dicom.stl");
+  const core::TriangleMesh nifti = io::read_stl(dir / "nifti.stl");
+  const auto distance = core::mesh_distance(dicom, nifti);
+  std::printf(
+      "  abdomen 300 HU, mc: DICOM %zu / NIfTI %zu triangles, Hausdorff (vertices) %.4f mm\n",
+      dicom.triangles.size(), nifti.triangles.size(), distance.hausdorff());
+  EXPECT_LE(distance.hausdorff(), 0.1);
   fs::remove_all(dir);
 }
 
