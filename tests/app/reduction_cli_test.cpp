@@ -1,17 +1,14 @@
 // --reduce-to and --max-error through the executable: every row of the README's table of what
 // they mean together (type merging within a bound in mm, to a count, the cap, refusals).
 #include <gtest/gtest.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
-#include <array>
 #include <cmath>
-#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "app/cli_runner.h"
 #include "ct_writer/ct_writer.h"
 
 namespace {
@@ -19,37 +16,23 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+using typemerge::test::fresh_dir;
+
 struct CommandRun {
   int exit_code = -1;
-  std::string out;
+  std::string out;  // stdout and stderr
 };
 
 CommandRun run(const std::string& arguments) {
-  const std::string command = std::string(TYPEMERGE_EXE) + " " + arguments + " 2>&1";
-  CommandRun result;
-  FILE* pipe = popen(command.c_str(), "r");
-  std::array<char, 4096> buffer{};
-  while (std::size_t n = std::fread(buffer.data(), 1, buffer.size(), pipe)) {
-    result.out.append(buffer.data(), n);
-  }
-  const int status = pclose(pipe);
-  result.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return result;
-}
-
-fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("typemerge_reduction_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  const typemerge::test::CliRun r = typemerge::test::run_cli(arguments);
+  return {r.exit_code, r.out + r.err};
 }
 
 // A 40 × 36 × 16 CT of 0.9 × 0.9 × 2.5 mm voxels: soft tissue (40 HU) in an ellipsoid body
 // holding two bone-like lumps (700 HU) of wavy outline, in air.
 const fs::path& body_series() {
   static const fs::path dir = [] {
-    const fs::path d = fresh_dir("series");
+    const fs::path d = fresh_dir("reduction_series");
     typemerge::ct_writer::SeriesLayout layout;
     layout.uid_seed = "reduction";
     layout.columns = 40;
@@ -82,7 +65,7 @@ json read_json(const fs::path& file) {
 // convert with a report; returns the report's first surface (exit code checked).
 json convert(const std::string& options, const std::string& name, int expected_exit = 0,
              std::string* out = nullptr) {
-  const fs::path dir = fresh_dir(name);
+  const fs::path dir = fresh_dir("reduction_" + name);
   const CommandRun r = run("convert " + body_series().string() + " " + options + " -o " +
                            (dir / "out.stl").string() + " --report " +
                            (dir / "report.json").string());
@@ -145,7 +128,7 @@ TEST(Reduction, BothGiveTheCountNeverBeyondTheBoundAndTheBoundWins) {
 }
 
 TEST(Reduction, EveryPresetSurfaceGetsTheCount) {
-  const fs::path dir = fresh_dir("presets");
+  const fs::path dir = fresh_dir("reduction_presets");
   const CommandRun r = run("convert " + body_series().string() +
                            " --preset bone,skin --min-component 1 --reduce-to 400 -o " +
                            dir.string() + " --report " + (dir / "report.json").string());
@@ -164,7 +147,7 @@ TEST(Reduction, MarchingCubesAlgorithmsRefuseThem) {
     for (const char* option : {"--max-error 1", "--reduce-to 100"}) {
       const CommandRun r = run("convert " + body_series().string() + " --iso 300 --algorithm " +
                                algorithm + " " + option + " -o " +
-                               (fresh_dir("refused") / "x.stl").string());
+                               (fresh_dir("reduction_refused") / "x.stl").string());
       EXPECT_EQ(r.exit_code, 2) << r.out;
       EXPECT_NE(r.out.find("unreduced"), std::string::npos) << r.out;
     }
@@ -199,7 +182,7 @@ TEST(Reduction, HollowUsesTheReducedSurface) {
 TEST(Reduction, DecimatorIsRemovedWithAMessageNamingTheReplacement) {
   const CommandRun r = run("convert " + body_series().string() +
                            " --iso 300 --reduce-to 100 --decimator meshopt -o " +
-                           (fresh_dir("decimator") / "x.stl").string());
+                           (fresh_dir("reduction_decimator") / "x.stl").string());
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.out.find("--decimator was removed"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("type merging"), std::string::npos) << r.out;
@@ -208,7 +191,7 @@ TEST(Reduction, DecimatorIsRemovedWithAMessageNamingTheReplacement) {
 TEST(Reduction, BadValuesAreRefused) {
   for (const char* option : {"--max-error 0", "--max-error -1", "--reduce-to 0", "--reduce-to x"}) {
     const CommandRun r = run("convert " + body_series().string() + " --iso 300 " + option +
-                             " -o " + (fresh_dir("bad") / "x.stl").string());
+                             " -o " + (fresh_dir("reduction_bad") / "x.stl").string());
     EXPECT_EQ(r.exit_code, 2) << option << ": " << r.out;
   }
 }

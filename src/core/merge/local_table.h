@@ -17,7 +17,7 @@ namespace typemerge::core::merge {
 
 class LocalTable {
  public:
-  // For a piece of `piece_vertices` vertices at `positions`.
+  // For the vertices of a piece, at `positions` (index space).
   explicit LocalTable(std::span<const Position> positions)
       : positions_of_piece_(positions), stamp_(positions.size(), 0), local_(positions.size(), 0) {}
 
