@@ -172,10 +172,11 @@ int run_label_convert(const ConvertOptions& options, std::ostream& log) {
                        "--preset, --iso and --window do not apply"};
   }
   if (options.hollow_mm > 0 || options.voxel_size_mm > 0 || options.denoise != "none" ||
-      options.crop_to_tissue || !options.crop_box_mm.empty() || options.remove_table) {
+      options.crop_to_tissue || !options.crop_box_mm.empty() || options.remove_table ||
+      options.preview) {
     throw CommandError{kExitUsage,
                        "label mode takes no preprocessing (--hollow, --voxel-size, --denoise, "
-                       "--crop-*, --remove-table)"};
+                       "--crop-*, --remove-table) and writes no --preview"};
   }
   const auto selection = parse_selection(options.labels.empty() ? "all" : options.labels);
   const InputKind kind = input_kind(options.input.input);
@@ -311,8 +312,9 @@ int run_label_convert(const ConvertOptions& options, std::ostream& log) {
     }
   }
 
-  const std::string comment =
-      std::string("typemerge ") + kVersion + " SPACE=" + (options.space == "ras" ? "RAS" : "LPS");
+  const std::string comment = std::string("typemerge ") + kVersion +
+                              " SPACE=" + (options.space == "ras" ? "RAS" : "LPS") +
+                              (options.center ? " CENTERED" : "");
   if (options.space == "ras") {
     for (SurfaceResult& r : results) {
       for (auto& p : r.mesh.positions) {
@@ -322,6 +324,24 @@ int run_label_convert(const ConvertOptions& options, std::ostream& log) {
       for (auto& n : r.mesh.normals) {
         n[0] = -n[0];
         n[1] = -n[1];
+      }
+    }
+  }
+  if (options.center) {
+    // One offset for all parts, centring their joint box on 0 (they stay in one frame).
+    core::BoundingBox joint;
+    for (const SurfaceResult& r : results) {
+      const core::BoundingBox box = core::bounding_box(r.mesh);
+      for (int c = 0; c < 3; ++c) {
+        joint.min[c] = std::min(joint.min[c], box.min[c]);
+        joint.max[c] = std::max(joint.max[c], box.max[c]);
+      }
+    }
+    std::array<float, 3> offset{};
+    for (int c = 0; c < 3; ++c) offset[c] = 0.5f * (float(joint.min[c]) + float(joint.max[c]));
+    for (SurfaceResult& r : results) {
+      for (auto& p : r.mesh.positions) {
+        for (int c = 0; c < 3; ++c) p[c] -= offset[c];
       }
     }
   }

@@ -266,6 +266,21 @@ TEST_F(LabelModeTest, NrrdLabelMapToStlFolderAndSlicerSegmentation) {
     expect_valid(io::read_stl(dir_ / "stl" / name), name);
   }
   EXPECT_FALSE(fs::exists(dir_ / "stl" / "label-1.stl"));
+  run = run_cli("convert " + (dir_ / "map.nrrd").string() + " --labels 1,2 --center --space ras " +
+                "--check-intersections -o " + (dir_ / "centred").string());
+  ASSERT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_NE(run.err.find("no crossing triangles"), std::string::npos) << run.err;
+  {
+    core::BoundingBox joint;
+    for (const char* name : {"label-1.stl", "label-2.stl"}) {
+      const core::BoundingBox box = core::bounding_box(io::read_stl(dir_ / "centred" / name));
+      for (int c = 0; c < 3; ++c) {
+        joint.min[c] = std::min(joint.min[c], box.min[c]);
+        joint.max[c] = std::max(joint.max[c], box.max[c]);
+      }
+    }
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(joint.min[c] + joint.max[c], 0.0, 1e-3);
+  }
 
   // A layered .seg.nrrd: layer 0 holds labels 1 and 2 (the balls), layer 1 the line as label 1,
   // overlapping nothing; names with characters unsafe in file names, and a repeated name.
