@@ -3,8 +3,15 @@
 // surface on the same grid.
 //
 //   reduction_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]
-//                   [--epsilons 0.5,1,2] [--blocks 8,16,32] [--targets 25%,10%]
-//                   [--spacing resample] [--threads 1]
+//                   [--epsilons 0.5,1,2] [--blocks 8,16,32] [--targets 0.25,0.1]
+//                   [--spacing resample] [--threads 1] [--vtk /usr/bin/python3]
+//
+// --targets: shares of marching cubes' triangles; per share N, on one thread, extraction +
+// reduction: tm --reduce-to N (extract_type_merged_to_count, cap 5 finest steps), OpenMesh's
+// quadric decimater and meshoptimizer's simplifier on marching cubes' surface, and with --vtk
+// (bench/vtk_reduce.py, python3-vtk9) flying edges + vtkQuadricDecimation and + vtkDecimatePro
+// (topology preserved: the count it reaches). Each is measured against its own unreduced
+// surface (tm and the decimators against marching cubes', VTK's against flying edges').
 //
 // Prints, per iso × bound × block size: one-thread extraction time, triangles and their share
 // of marching cubes', the two-sided Hausdorff and mean distances to marching cubes' surface in
@@ -16,14 +23,24 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
+#include <limits>
 #include <string>
+#include <map>
 #include <vector>
+
+#include <unistd.h>
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
+#include "core/bounded_reduction.h"
 #include "core/type_merging.h"
+#include "io/nrrd_writer.h"
+#include "io/stl_writer.h"
+#include "mesh/decimation.h"
+#include <meshoptimizer.h>
 #include "default_series.h"
 #include "list_argument.h"
 #include "synthetic_volume.h"
@@ -67,6 +84,36 @@ void print(const char* what, double ms, const Quality& q, std::size_t mc_triangl
               q.extremes.above_170, q.extremes.below_1);
 }
 
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+// meshoptimizer's simplifier as its users call it: to a count, no error limit, then compacted.
+core::TriangleMesh meshopt_simplified(const core::TriangleMesh& mesh, std::size_t target) {
+  std::vector<unsigned> indices;
+  for (const auto& t : mesh.triangles) indices.insert(indices.end(), t.begin(), t.end());
+  std::vector<unsigned> out(indices.size());
+  float error = 0;
+  const std::size_t n = meshopt_simplify(out.data(), indices.data(), indices.size(),
+                                         &mesh.positions[0][0], mesh.positions.size(),
+                                         sizeof(float) * 3, 3 * target, 1.0f, 0, &error);
+  core::TriangleMesh result;
+  std::vector<std::uint32_t> id(mesh.positions.size(), std::numeric_limits<std::uint32_t>::max());
+  for (std::size_t i = 0; i + 2 < n; i += 3) {
+    std::array<std::uint32_t, 3> t{};
+    for (int k = 0; k < 3; ++k) {
+      const unsigned v = out[i + static_cast<std::size_t>(k)];
+      if (id[v] == std::numeric_limits<std::uint32_t>::max()) {
+        id[v] = static_cast<std::uint32_t>(result.positions.size());
+        result.positions.push_back(mesh.positions[v]);
+      }
+      t[static_cast<std::size_t>(k)] = id[v];
+    }
+    result.triangles.push_back(t);
+  }
+  return result;
+}
+
 int usage() {
   std::fprintf(stderr,
                "usage: reduction_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
@@ -78,7 +125,7 @@ int usage() {
 
 int main(int argc, char** argv) {
   std::string series_dir, synthetic, iso_list = "300,-500", epsilons = "0.5,1,2",
-                                     blocks = "8,16,32", spacing;
+                                     blocks = "8,16,32", spacing, targets, vtk_python;
   unsigned threads = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
@@ -90,6 +137,8 @@ int main(int argc, char** argv) {
     else if (key == "--blocks") blocks = value;
     else if (key == "--spacing") spacing = value;
     else if (key == "--threads") threads = static_cast<unsigned>(std::stoul(value));
+    else if (key == "--targets") targets = value;
+    else if (key == "--vtk") vtk_python = value;
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
@@ -142,6 +191,83 @@ int main(int argc, char** argv) {
         print(what.c_str(), ms, measure(tm, mc, mc_check, threads), mc.triangles.size());
       }
     }
+    if (targets.empty()) continue;
+    const double finest = std::min({geometry.spacing(0), geometry.spacing(1), geometry.spacing(2)});
+    std::vector<std::size_t> counts;
+    for (const std::string& share : bench::split(targets)) {
+      counts.push_back(static_cast<std::size_t>(std::stod(share) * double(mc.triangles.size())));
+    }
+    for (const std::size_t n : counts) {
+      std::printf(" target %zu triangles (%.0f %% of mc)\n", n,
+                  100.0 * double(n) / double(mc.triangles.size()));
+      start = Clock::now();
+      core::ReductionResult r = core::extract_type_merged_to_count(
+          volume, iso, extract, {}, n, core::kReductionCapSteps * finest);
+      double ms = ms_since(start);
+      core::to_patient(r.mesh, geometry);
+      char what[96];
+      std::snprintf(what, sizeof what, "tm --reduce-to (%s, %.2f mm)",
+                    r.target_met ? "met" : "NOT met", r.bound_mm);
+      print(what, ms, measure(r.mesh, mc, mc_check, threads), mc.triangles.size());
+
+      core::TriangleMesh openmesh = mc;
+      start = Clock::now();
+      mesh::DecimationOptions decimation;
+      decimation.target_triangles = n;
+      decimation.max_error = std::numeric_limits<double>::infinity();
+      mesh::decimate_with_openmesh(openmesh, decimation);
+      print("mc + OpenMesh quadric", mc_ms + ms_since(start),
+            measure(openmesh, mc, mc_check, threads), mc.triangles.size());
+
+      start = Clock::now();
+      const core::TriangleMesh simplified = meshopt_simplified(mc, n);
+      print("mc + meshoptimizer", mc_ms + ms_since(start),
+            measure(simplified, mc, mc_check, threads), mc.triangles.size());
+    }
+    if (vtk_python.empty()) continue;
+    namespace fs = std::filesystem;
+    const fs::path dir = fs::temp_directory_path() / ("reduction_bench_" + std::to_string(::getpid()));
+    fs::create_directories(dir);
+    const bool integral = std::all_of(volume.samples().begin(), volume.samples().end(),
+                                      [](float v) {
+                                        return v == std::floor(v) && v >= -32768.0f &&
+                                               v <= 32767.0f;
+                                      });
+    io::write_nrrd(volume, dir / "volume.nrrd",
+                   integral ? io::NrrdSampleType::int16 : io::NrrdSampleType::float32);
+    std::string target_list;
+    for (const std::size_t n : counts) target_list += (target_list.empty() ? "" : ",") + std::to_string(n);
+    const std::string command = vtk_python + " " TYPEMERGE_BENCH_SOURCE_DIR "/vtk_reduce.py " +
+                                (dir / "volume.nrrd").string() + " " + dir.string() + " --iso " +
+                                iso_text + " --targets " + target_list;
+    FILE* pipe = ::popen(command.c_str(), "r");
+    std::map<std::string, double> seconds;
+    char name[64];
+    double s = 0;
+    std::size_t count = 0;
+    while (pipe != nullptr && std::fscanf(pipe, "%63s %lf %zu", name, &s, &count) == 3) seconds[name] = s;
+    if (pipe == nullptr || ::pclose(pipe) != 0 || seconds.count("fe") == 0) {
+      std::printf("  (vtk_reduce.py failed)\n");
+      continue;
+    }
+    core::TriangleMesh fe = io::read_stl(dir / "fe.stl");
+    core::to_patient(fe, geometry);
+    const core::MeshCheck fe_check = core::check_mesh(fe, threads);
+    print("VTK flying edges", 1000 * seconds["fe"], measure(fe, fe, fe_check, threads),
+          mc.triangles.size());
+    for (const std::size_t n : counts) {
+      for (const char* route : {"quadric", "pro"}) {
+        const std::string key = std::string(route) + "-" + std::to_string(n);
+        core::TriangleMesh reduced = io::read_stl(dir / (key + ".stl"));
+        core::to_patient(reduced, geometry);
+        const std::string what = std::string("FE + vtk") +
+                                 (route == std::string("quadric") ? "QuadricDecimation"
+                                                                  : "DecimatePro");
+        print(what.c_str(), 1000 * seconds[key], measure(reduced, fe, fe_check, threads),
+              mc.triangles.size());
+      }
+    }
+    fs::remove_all(dir);
   }
   return 0;
 }
