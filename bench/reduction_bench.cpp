@@ -124,6 +124,7 @@ int usage() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);  // each row as it is measured, also into a file
   std::string series_dir, synthetic, iso_list = "300,-500", epsilons = "0.5,1,2",
                                      blocks = "8,16,32", spacing, targets, vtk_python;
   unsigned threads = 1;
