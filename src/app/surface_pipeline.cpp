@@ -149,7 +149,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   extract.mode = options.algorithm == "classic" ? core::ExtractOptions::Mode::classic
                                                 : core::ExtractOptions::Mode::consistent;
   // No gradient normals: nothing a conversion writes stores vertex normals (STL, 3MF and the
-  // preview use facet normals, PLY and OBJ none), and smoothing and decimation recompute them.
+  // preview use facet normals, PLY and OBJ none), and smoothing recomputes them.
   extract.vertex_normals = false;
 
   run_step(result, "extract (" + options.algorithm + ")", options.threads, [&](core::TriangleMesh& mesh) {

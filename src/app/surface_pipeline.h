@@ -52,7 +52,7 @@ struct PipelineOptions {
   unsigned threads = 0;  // extraction threads; 0 = all cores (the output does not depend on it)
   FinishOptions finish;
   // Count crossing triangle pairs (core/self_intersections.h) after every finishing step that
-  // moves vertices (smoothing, decimation) and undo a step that adds any.
+  // moves vertices (smoothing) and undo a step that adds any.
   bool check_intersections = false;
   // Measure each surface's two-sided distance to marching cubes' surface on the same grid
   // (sampled over both surfaces, ≥ 1 point per mm²), for --report: SurfaceResult::distance.
