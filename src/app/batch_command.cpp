@@ -19,11 +19,13 @@
 #include <ostream>
 #include <thread>
 
+#include "app/batch_files.h"
 #include "app/batch_folders.h"
 #include "app/batch_manifest.h"
 #include "app/batch_summary.h"
 #include "app/child_process.h"
 #include "app/exit_codes.h"
+#include "app/label_mode.h"
 #include "app/memory_budget.h"
 #include "dicom/patient_identifiers.h"
 
@@ -92,6 +94,7 @@ std::vector<std::string> input_arguments(const InputOptions& input) {
 std::string parameter_text(const BatchOptions& options) {
   std::vector<std::string> all = input_arguments(options.input);
   all.insert(all.end(), options.surface_arguments.begin(), options.surface_arguments.end());
+  all.insert(all.end(), options.label_arguments.begin(), options.label_arguments.end());
   // Only when not the default, so that manifests of STL batches stay valid.
   if (options.format != "stl") all.push_back("--format=" + options.format);
   // --reduce-to and --max-error changed meaning (quadric decimation → type merging within a
@@ -278,6 +281,20 @@ void read_report(const fs::path& report, const std::string& name, StudyOutcome& 
   std::ifstream in(report);
   const ordered_json json = ordered_json::parse(in);
   for (const auto& w : json.at("input").at("warnings")) outcome.warnings.push_back(w.get<std::string>());
+  if (json.contains("labels")) {
+    // Label mode's report (label_mode.h): one entry per label, named by its part's name.
+    for (const auto& l : json.at("labels")) {
+      outcome.surfaces.push_back({l.at("name").get<std::string>(),
+                                  name + "/" + l.at("output").get<std::string>(),
+                                  l.at("triangles").get<std::uint64_t>(),
+                                  l.at("volume_ml").get<double>(),
+                                  l.at("validity").at("closed_manifold").get<bool>(), true});
+      for (const auto& w : l.at("warnings")) {
+        outcome.warnings.push_back(l.at("name").get<std::string>() + ": " + w.get<std::string>());
+      }
+    }
+    return;
+  }
   for (const auto& step : json.at("preprocess")) {
     for (const auto& w : step.at("warnings")) outcome.warnings.push_back(w.get<std::string>());
   }
@@ -333,6 +350,7 @@ class BatchRun {
   std::vector<std::string> child_arguments(const StudyPlan& plan, const fs::path& work) const;
   // The folder (or file) `convert` is given for the study.
   fs::path study_input(const StudyPlan& plan) const {
+    if (plan.source != StudySource::dicom) return root_ / plan.input_file;
     return root_is_folder_ ? root_ / plan.folder : root_;
   }
 
@@ -354,11 +372,48 @@ class BatchRun {
   std::unique_ptr<BatchProgress> progress_;
 };
 
+// Whether the study is converted in label mode: segmentations always (the batch's --preset,
+// --iso and --window do not apply to them), NIfTI and NRRD label maps (batch_plan.h) when
+// --labels is given; grey volumes (signed or float samples: CT, MR) never.
+bool label_mode_study(const StudyPlan& plan, const BatchOptions& options) {
+  switch (plan.source) {
+    case StudySource::segmentation_nrrd:
+    case StudySource::dicom_seg: return true;
+    case StudySource::nifti:
+    case StudySource::nrrd:
+      return plan.label_map &&
+             std::any_of(options.label_arguments.begin(), options.label_arguments.end(),
+                         [](const std::string& a) { return a.rfind("--labels=", 0) == 0; });
+    default: return false;
+  }
+}
+
+// The surface options a study's conversion gets: in label mode without the grey ones
+// (--preset, --iso, --window) and with the label options; else the grey ones only. Options
+// that make no sense for the input (--hollow on a label map, --preset on a label map given
+// without --labels) are passed on, and `convert` refuses that study with its reason.
+std::vector<std::string> study_surface_arguments(const StudyPlan& plan,
+                                                 const BatchOptions& options) {
+  if (!label_mode_study(plan, options)) return options.surface_arguments;
+  std::vector<std::string> arguments;
+  for (const std::string& a : options.surface_arguments) {
+    const bool grey = a.rfind("--preset", 0) == 0 || a.rfind("--iso", 0) == 0 ||
+                      a.rfind("--window", 0) == 0;
+    if (!grey) arguments.push_back(a);
+  }
+  arguments.insert(arguments.end(), options.label_arguments.begin(), options.label_arguments.end());
+  return arguments;
+}
+
 std::vector<std::string> BatchRun::child_arguments(const StudyPlan& plan, const fs::path& work) const {
   std::vector<std::string> argv = {current_executable().string(), "convert",
-                                   study_input(plan).string(), "--series", plan.series_id};
+                                   study_input(plan).string()};
+  if (plan.source == StudySource::dicom) {
+    argv.push_back("--series");
+    argv.push_back(plan.series_id);
+  }
   for (const std::string& a : input_arguments(options_.input)) argv.push_back(a);
-  for (const std::string& a : options_.surface_arguments) argv.push_back(a);
+  for (const std::string& a : study_surface_arguments(plan, options_)) argv.push_back(a);
   // With --format 3mf one package, named like the study's output folder (so that packages
   // gathered from several studies do not collide); else a folder of STL files.
   const std::string package = fs::path(plan.output_name).filename().string() + ".3mf";
@@ -399,7 +454,7 @@ void BatchRun::record(StudyOutcome outcome, std::uint64_t voxels) {
 void BatchRun::prepare(const std::vector<StudyPlan>& plans) {
   for (const StudyPlan& plan : plans) {
     if (!in_shard(plan.study_id, shard_.k, shard_.n)) continue;
-    if (plan.series_id.empty()) {
+    if (!plan.refusal.empty()) {
       StudyOutcome outcome = outcome_base(plan);
       outcome.reason = plan.refusal;
       outcomes_.push_back(outcome);  // reported once the progress exists
@@ -474,8 +529,10 @@ int BatchRun::run() {
   for (const std::string& w : scan.warnings) log_ << "warning: " << w << "\n";
 
   // Patient identifiers are read from one file per study only to keep them out of names.
-  const std::vector<StudyPlan> plans = plan_studies(scan, options_.filter, options_.name_pattern,
-                                                    dicom::patient_identifiers);
+  std::vector<StudyPlan> plans = plan_studies(scan, options_.filter, options_.name_pattern,
+                                              dicom::patient_identifiers);
+  // NIfTI, NRRD, SEG and ZIP files among the files the DICOM scan passed over.
+  add_file_studies(scan, options_.name_pattern, dicom::patient_identifiers, plans);
   prepare(plans);
   account_for_folders(scan, plans);
 
@@ -761,7 +818,14 @@ void add_batch_command(CLI::App& app, BatchOptions& options) {
                     "folder-<id> (paths may hold patient names)");
   CLI::App* surface = command->add_option_group("Surface");
   add_surface_options(*surface, options.convert);
-  command->callback([&options, surface] { options.surface_arguments = given_arguments(*surface); });
+  // In their own group: a tree may hold CT series (--preset) and label maps (--labels) at once.
+  CLI::App* labels = command->add_option_group("Labels");
+  CLI::App unused_surface;
+  add_label_options(*labels, unused_surface, options.convert);
+  command->callback([&options, surface, labels] {
+    options.surface_arguments = given_arguments(*surface);
+    options.label_arguments = given_arguments(*labels);
+  });
 }
 
 int run_batch(const BatchOptions& options, std::ostream& log) {
@@ -780,7 +844,19 @@ int run_batch(const BatchOptions& options, std::ostream& log) {
   if (options.input.input.empty()) {
     throw CommandError{kExitUsage, "batch needs the folder to convert (ROOT)"};
   }
-  surface_specs(options.convert);  // unknown presets and empty requests are refused up front
+  // Unknown presets and empty requests are refused up front; with --labels alone the DICOM
+  // studies of the tree (if any) are refused one by one, as nothing was asked of them.
+  const bool grey_request = !options.convert.presets.empty() || !options.convert.iso.empty() ||
+                            !options.convert.window.empty();
+  if (grey_request || options.convert.labels.empty()) {
+    try {
+      surface_specs(options.convert);
+    } catch (const CommandError& error) {
+      if (grey_request) throw;
+      throw CommandError{error.exit_code,
+                         error.message + ", or --labels all|N[,N...] for label maps"};
+    }
+  }
   try {
     dicom::SeriesInfo probe;
     options.filter.accepts(probe);  // malformed regular expressions are refused up front

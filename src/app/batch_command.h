@@ -19,6 +19,9 @@ struct BatchOptions {
   InputOptions input;      // ROOT and how it is searched
   ConvertOptions convert;  // the surface options, checked here and passed on to `convert`
   std::vector<std::string> surface_arguments;  // those options as given, to pass on
+  // --labels, --label-names, --label-smoothing as given: passed on to the studies converted
+  // in label mode (segmentations always; NIfTI and NRRD files when --labels is given).
+  std::vector<std::string> label_arguments;
   std::string out;
   std::string format = "stl";  // stl: an STL per surface; 3mf: one package per study
   std::string name_pattern = kDefaultNamePattern;

@@ -160,6 +160,14 @@ bool SeriesFilter::accepts(const dicom::SeriesInfo& series) const {
   return true;
 }
 
+std::string study_output_name(const std::string& pattern, const StudyPlan& study) {
+  return output_name(pattern, study);
+}
+
+bool spells_identifier(const std::string& component, const std::vector<std::string>& values) {
+  return looks_identifying(component, values);
+}
+
 std::string study_id_of(const std::string& study_uid) {
   char text[17];
   std::snprintf(text, sizeof text, "%012llx",

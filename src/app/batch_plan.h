@@ -32,7 +32,16 @@ struct SeriesFilter {
   bool accepts(const dicom::SeriesInfo& series) const;
 };
 
+// What a study is converted from: a series of the DICOM scan, or one file that is a study by
+// itself (batch_files.h).
+enum class StudySource { dicom, nifti, nrrd, segmentation_nrrd, dicom_seg, zip };
+
 struct StudyPlan {
+  StudySource source = StudySource::dicom;
+  std::filesystem::path input_file;  // file studies: the file, relative to the root
+  // NIfTI and NRRD studies: the header marks labels (NIfTI label intent) or the samples are
+  // unsigned integers; such files are converted in label mode under --labels.
+  bool label_map = false;
   std::string study_id;           // 12 hex digits of a hash of the StudyInstanceUID
   std::filesystem::path folder;   // relative to the root: the deepest folder holding all its files
   std::string shown_folder;       // `folder` for outputs: components spelling patient data masked
@@ -58,6 +67,14 @@ using IdentifyingValues = std::function<std::vector<std::string>(const std::file
 std::vector<StudyPlan> plan_studies(const dicom::FolderScan& scan, const SeriesFilter& filter,
                                     const std::string& name_pattern,
                                     const IdentifyingValues& identifying = {});
+
+// `pattern` filled in for `study` (its shown_folder, study_id, series_id) and made safe as
+// plan_studies does: sanitised components, none ending like an output file, never empty.
+std::string study_output_name(const std::string& pattern, const StudyPlan& study);
+
+// Whether a path component spells one of `values` (letters and digits compared
+// case-insensitively; values shorter than 3 characters never match).
+bool spells_identifier(const std::string& component, const std::vector<std::string>& values);
 
 // The study id of a StudyInstanceUID (stable, non-identifying).
 std::string study_id_of(const std::string& study_uid);
