@@ -10,10 +10,12 @@
 #include <nlohmann/json.hpp>
 #include <ostream>
 #include <set>
+#include <vector>
 
 #include "app/exit_codes.h"
 #include "app/input_kind.h"
 #include "app/label_names.h"
+#include "app/label_surfaces.h"
 #include "app/memory_budget.h"
 #include "app/surface_pipeline.h"
 #include "app/version.h"
@@ -101,15 +103,25 @@ core::Volume label_field(const core::Volume& layer, std::int32_t label, const La
   core::Volume field({n[0], n[1], n[2]}, box);
   const auto& size = layer.size();
   const float value = static_cast<float>(label);
+  // One pass over the box's part inside the layer, row by row and without branches: the
+  // indicator, and the label's voxels as a byte mask for the clamp (a quarter of a copy).
+  const std::int64_t i0 = std::max<std::int64_t>(0, -lo[0]);
+  const std::int64_t i1 = std::min<std::int64_t>(n[0], size.nx - lo[0]);
+  const float* samples = layer.samples().data();
+  auto& out = field.samples();
+  std::vector<std::uint8_t> member(out.size(), 0);
   for (std::int64_t k = 0; k < n[2]; ++k) {
     const std::int64_t z = lo[2] + k;
     if (z < 0 || z >= size.nz) continue;
     for (std::int64_t j = 0; j < n[1]; ++j) {
       const std::int64_t y = lo[1] + j;
-      if (y < 0 || y >= size.ny) continue;
-      for (std::int64_t i = 0; i < n[0]; ++i) {
-        const std::int64_t x = lo[0] + i;
-        if (x >= 0 && x < size.nx && layer.at(x, y, z) == value) field.at(i, j, k) = 1.0f;
+      if (y < 0 || y >= size.ny || i1 <= i0) continue;
+      const float* row = samples + static_cast<std::size_t>(lo[0] + size.nx * (y + size.ny * z));
+      const auto at = static_cast<std::size_t>(n[0] * (j + n[1] * k));
+      for (std::int64_t i = i0; i < i1; ++i) {
+        const bool in = row[i] == value;
+        out[at + static_cast<std::size_t>(i)] = in ? 1.0f : 0.0f;
+        member[at + static_cast<std::size_t>(i)] = in ? 1 : 0;
       }
     }
   }
@@ -117,12 +129,11 @@ core::Volume label_field(const core::Volume& layer, std::int32_t label, const La
   preprocess::GaussianOptions gaussian;
   gaussian.sigma_mm = sigma_mm;
   gaussian.truncate = 3.0;
-  core::Volume smooth = preprocess::gaussian_filter(field, gaussian).volume;
+  core::Volume smooth = preprocess::gaussian_filter(std::move(field), gaussian).volume;
   const float inside = 0.5f + kClampMargin, outside = 0.5f - kClampMargin;
   auto& s = smooth.samples();
-  const auto& f = field.samples();
   for (std::size_t v = 0; v < s.size(); ++v) {
-    s[v] = f[v] > 0.5f ? std::max(s[v], inside) : std::min(s[v], outside);
+    s[v] = member[v] != 0 ? std::max(s[v], inside) : std::min(s[v], outside);
   }
   return smooth;
 }
@@ -288,28 +299,27 @@ int run_label_convert(const ConvertOptions& options, std::ostream& log) {
   if (options.fill_cavities) pipeline.finish.fill_cavities = true;
   pipeline.check_intersections = options.check_intersections;
 
+  // Labels on all threads at once (label_surfaces.h: the same bytes for any thread count).
+  std::vector<LabelTask> tasks;
+  for (const LabelPart& part : parts) {
+    tasks.push_back({&content.layers[part.segment.layer],
+                     part.segment.label,
+                     part.extent,
+                     {part.stem, "label " + std::to_string(part.segment.label), detail::kLabelIso,
+                      std::nullopt, false, 0, false, false, part.srgb}});
+  }
+  std::vector<LabelSurface> made =
+      extract_label_surfaces(tasks, sigma_mm, pipeline, options.threads);
   std::vector<SurfaceResult> results;
   std::vector<double> extract_ms;
-  for (const LabelPart& part : parts) {
-    const auto start = Clock::now();
-    const core::Volume field = detail::label_field(content.layers[part.segment.layer],
-                                                   part.segment.label, part.extent, sigma_mm);
-    SurfaceSpec spec{part.stem,
-                     "label " + std::to_string(part.segment.label),
-                     detail::kLabelIso,
-                     std::nullopt,
-                     false,
-                     0,
-                     false,
-                     false,
-                     part.srgb};
-    results.push_back(make_surface(field, spec, pipeline));
-    extract_ms.push_back(ms_since(start));
-    if (results.back().mesh.empty()) {
+  for (std::size_t p = 0; p < parts.size(); ++p) {
+    if (made[p].result.mesh.empty()) {
       throw CommandError{kExitInputRefused, "the surface of label " +
-                                                std::to_string(part.segment.label) +
+                                                std::to_string(parts[p].segment.label) +
                                                 " was removed by finishing (see --min-component)"};
     }
+    results.push_back(std::move(made[p].result));
+    extract_ms.push_back(made[p].milliseconds);
   }
 
   const std::string comment = std::string("typemerge ") + kVersion +

@@ -5,8 +5,9 @@
 // label, its 0/1 indicator inside its box padded by the smoothing's support plus one voxel (so
 // the surface never reaches the box's border and closes by itself); the indicator smoothed and
 // clamped (below); the project's extractor at ½ + η (η = 1/256, below) with convert's
-// pipeline (make_surface: algorithm tm by default, finishing, checks); all surfaces made
-// before any file is written.
+// pipeline (make_surface: algorithm tm by default, finishing, checks). Labels are made on
+// --threads workers at once (label_surfaces.h: the same bytes for any thread count); all
+// surfaces are made before any file is written.
 //
 // The field f of a label, on its box:
 //   g = G_σ * I        the indicator I (1 on the label's voxels) smoothed by a Gaussian of σ mm;
@@ -43,8 +44,8 @@
 //    their topology but little volume: a one-voxel line about a tenth of it with the default
 //    σ (the raw surface, about half), a single voxel a speck.
 //
-// Memory: the label map (4 bytes a voxel a layer) plus, per label in turn, two fields of its
-// padded box and its surface.
+// Memory: the label map (4 bytes a voxel a layer) plus, per label being made (at most one per
+// thread), two fields of its padded box and a byte per box voxel, and every label's surface.
 #pragma once
 
 #include <cstdint>

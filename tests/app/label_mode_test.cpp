@@ -20,10 +20,12 @@
 #include "app/cli_runner.h"
 #include "app/exit_codes.h"
 #include "app/label_names.h"
+#include "app/label_census.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
 #include "io/stl_writer.h"
+#include "preprocess/denoise.h"
 #include "support/test_data.h"
 #include "support/three_mf_reader.h"
 #include "support/volume_file_writers.h"
@@ -417,6 +419,26 @@ TEST_F(LabelModeTest, NothingIdentifyingLeaves) {
   }
 }
 
+// Labels are made on several threads at once (label_surfaces.h): the files must not depend on
+// how many.
+TEST_F(LabelModeTest, SameBytesForAnyThreadCount) {
+  test::write_nifti(dir_ / "map.nii.gz", scene_nifti());
+  std::map<std::string, std::string> first;
+  for (const char* threads : {"1", "2", "5"}) {
+    const fs::path out = dir_ / (std::string("t") + threads);
+    const auto run = run_cli("convert " + (dir_ / "map.nii.gz").string() + " --labels all -o " +
+                             out.string() + " --threads " + threads);
+    ASSERT_EQ(run.exit_code, 0) << run.err;
+    std::map<std::string, std::string> files;
+    for (const auto& entry : fs::directory_iterator(out)) {
+      files[entry.path().filename().string()] = test::read_file_bytes(entry.path());
+    }
+    EXPECT_GE(files.size(), 4u);
+    if (first.empty()) first = files;
+    EXPECT_TRUE(files == first) << threads << " threads";
+  }
+}
+
 TEST(LabelModeRealData, SlicerLabelMapTwoLabels) {
   TYPEMERGE_REQUIRE_REAL_DATA(data);
   const fs::path map = data / "seg" / "dcmqi" / "liver_spine_seg.nrrd";
@@ -501,6 +523,50 @@ TEST(LabelField, ClampKeepsEveryVoxelsSide) {
         outside_max = std::max(outside_max, field.at(i, j, k));
       }
   EXPECT_LT(outside_max, 0.5f);
+}
+
+// The field against its definition computed the plain way (label_mode.h): the indicator on the
+// padded box, Gaussian, clamp; on labels whose boxes reach past every face of the layer.
+TEST(LabelField, EqualsTheDefinitionAlsoAtTheLayersBorder) {
+  core::IndexToPatient geometry;
+  geometry.axes = {{{0.8, 0, 0}, {0, 0.9, 0}, {0, 0, 1.3}}};
+  core::Volume layer({13, 11, 7}, geometry);
+  std::uint32_t state = 7;
+  for (float& v : layer.samples()) {
+    state = state * 1664525u + 1013904223u;
+    v = float((state >> 24) % 3);  // labels 0, 1, 2 scattered everywhere
+  }
+  const auto census = label_census(layer);
+  for (double sigma : {0.0, 0.45, 1.1}) {
+    for (const auto& [label, extent] : census) {
+      const core::Volume field = detail::label_field(layer, label, extent, sigma);
+      const auto pad = static_cast<std::int64_t>(1 + std::ceil(3.0 * sigma / 0.8));
+      const auto& n = field.size();
+      core::Volume indicator(n, field.geometry());
+      for (std::int64_t k = 0; k < n.nz; ++k)
+        for (std::int64_t j = 0; j < n.ny; ++j)
+          for (std::int64_t i = 0; i < n.nx; ++i) {
+            const std::int64_t x = i + extent.min[0] - pad, y = j + extent.min[1] - pad,
+                               z = k + extent.min[2] - pad;
+            const bool in = x >= 0 && y >= 0 && z >= 0 && x < 13 && y < 11 && z < 7 &&
+                            layer.at(x, y, z) == float(label);
+            indicator.at(i, j, k) = in ? 1.0f : 0.0f;
+          }
+      if (sigma == 0) {
+        EXPECT_EQ(field.samples(), indicator.samples());
+        continue;
+      }
+      preprocess::GaussianOptions gaussian;
+      gaussian.sigma_mm = sigma;
+      gaussian.truncate = 3.0;
+      core::Samples expected = preprocess::gaussian_filter(indicator, gaussian).volume.samples();
+      for (std::size_t v = 0; v < expected.size(); ++v) {
+        expected[v] = indicator.samples()[v] > 0.5f ? std::max(expected[v], 0.5f + detail::kClampMargin)
+                                                    : std::min(expected[v], 0.5f - detail::kClampMargin);
+      }
+      EXPECT_EQ(field.samples(), expected) << "label " << label << ", sigma " << sigma;
+    }
+  }
 }
 
 }  // namespace
