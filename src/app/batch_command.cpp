@@ -350,7 +350,7 @@ class BatchRun {
   std::vector<std::string> child_arguments(const StudyPlan& plan, const fs::path& work) const;
   // The folder (or file) `convert` is given for the study.
   fs::path study_input(const StudyPlan& plan) const {
-    if (plan.source != StudySource::dicom) return root_ / plan.input_file;
+    if (plan.source != StudySource::dicom) return root_is_folder_ ? root_ / plan.input_file : root_;
     return root_is_folder_ ? root_ / plan.folder : root_;
   }
 
@@ -505,7 +505,11 @@ int BatchRun::run() {
   shard_ = parse_shard(options_.shard);
   budget_ = options_.max_memory.empty() ? default_memory_budget()
                                         : parse_memory_size(options_.max_memory);
-  shape_ = conversion_shape(options_.convert);
+  // With --labels alone nothing grey is asked (label mode's estimate: the default shape).
+  const bool grey_request = !options_.convert.presets.empty() || !options_.convert.iso.empty() ||
+                            !options_.convert.window.empty();
+  shape_ = grey_request || options_.convert.labels.empty() ? conversion_shape(options_.convert)
+                                                           : ConversionShape{};
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   threads_per_study_ = options_.threads > 0 ? options_.threads
                                             : std::max(1u, cores / std::max(1u, options_.jobs));

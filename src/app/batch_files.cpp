@@ -154,7 +154,8 @@ std::optional<StudySource> file_study_source(const fs::path& file) {
 void add_file_studies(const dicom::FolderScan& scan, const std::string& name_pattern,
                       const IdentifyingValues& identifying, std::vector<StudyPlan>& plans) {
   std::error_code error;
-  if (!fs::is_directory(scan.root, error)) return;
+  // ROOT may be one such file: its scan lists it by its name alone.
+  const bool root_is_folder = fs::is_directory(scan.root, error);
   const std::size_t dicom_studies = plans.size();
   std::vector<StudyPlan> found;
   for (const dicom::SkippedFile& skipped : scan.skipped) {
@@ -162,7 +163,7 @@ void add_file_studies(const dicom::FolderScan& scan, const std::string& name_pat
     if (skipped.kind == dicom::FileKind::unreadable || skipped.kind == dicom::FileKind::ct_image) {
       continue;
     }
-    const fs::path file = scan.root / skipped.path;
+    const fs::path file = root_is_folder ? scan.root / skipped.path : scan.root;
     std::optional<StudySource> source = file_study_source(file);
     if (!source) continue;
     StudyPlan plan;

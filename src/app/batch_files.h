@@ -37,7 +37,8 @@
 namespace typemerge::app {
 
 // Appends the file studies of `scan` to `plans` (the DICOM studies plan_studies made of it) and
-// sorts all by output name, then id. Nothing for a scan of a single file.
+// sorts all by output name, then id. A scan of a single file (ROOT is the file) gives that file
+// as the one study, if it is one.
 void add_file_studies(const dicom::FolderScan& scan, const std::string& name_pattern,
                       const IdentifyingValues& identifying, std::vector<StudyPlan>& plans);
 

@@ -235,6 +235,16 @@ TEST(BatchInputs, EveryKindIsAStudyAccountedNamedWithoutPatientDataAndUpToDateOn
   EXPECT_EQ(outputs_of(out), before);
 }
 
+TEST(BatchInputs, RootMayBeOneFile) {
+  const fs::path out = fresh_dir("batch_inputs_one_file") / "out";
+  const auto run = run_cli("batch " + (tree().root / "p04" / "organs.seg.nrrd").string() +
+                           " --labels all --out " + out.string());
+  ASSERT_EQ(run.exit_code, 0) << run.out << run.err;
+  const json summary = summary_of(out / "summary.json");
+  EXPECT_EQ(summary["converted"], 1) << results_text(summary);
+  EXPECT_TRUE(fs::is_regular_file(out / "organs" / "left.stl"));
+}
+
 TEST(BatchInputs, OptionsThatDoNotApplyRefuseThatStudyOnly) {
   const Tree& t = tree();
   const fs::path out = fresh_dir("batch_inputs_refused") / "out";
