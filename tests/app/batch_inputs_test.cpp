@@ -277,6 +277,23 @@ TEST(BatchInputs, OptionsThatDoNotApplyRefuseThatStudyOnly) {
     }
   }
   EXPECT_GE(s2["converted"].get<int>(), 3) << results_text(s2);
+
+  // --labels alone: nothing was asked of the DICOM series (folders and ZIPs), which fail with
+  // convert's reason; the segmentations and the label map convert.
+  const fs::path out3 = fresh_dir("batch_inputs_labels_only") / "out";
+  const auto labels = run_cli("batch " + t.root.string() + " --labels all --out " + out3.string());
+  EXPECT_EQ(labels.exit_code, 5) << labels.err;
+  const json s3 = summary_of(out3 / "summary.json");
+  for (const auto& r : s3["results"]) {
+    const std::string series = r["series"];
+    const bool labelled = series == "seg.nrrd" || series == "seg" ||
+                          (series == "nifti" && r["output"] != "p03/CT_ABD_N_3");
+    EXPECT_EQ(r["status"], labelled ? "converted" : "failed") << r.dump();
+    if (!labelled) {
+      EXPECT_NE(r["reason"].get<std::string>().find("say what to extract"), std::string::npos)
+          << r.dump();
+    }
+  }
 }
 
 }  // namespace
