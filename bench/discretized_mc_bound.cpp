@@ -203,9 +203,10 @@ int main(int argc, char** argv) {
     const core::TriangleMesh mc = core::extract_isosurface(volume, iso);
     const core::TriangleMesh tm = core::extract_type_merged(volume, iso);
     core::Volume binary(size, core::IndexToPatient{});  // index space: midpoints are exact
-    for (std::size_t s = 0; s < volume.samples().size(); ++s) {
-      binary.samples()[s] = volume.samples()[s] >= iso ? 1.0f : 0.0f;
-    }
+    volume.visit([&](const auto* samples) {
+      core::Samples& out = binary.samples();
+      for (std::size_t s = 0; s < out.size(); ++s) out[s] = samples[s] >= iso ? 1.0f : 0.0f;
+    });
     const Bound bound = coplanar_merge_bound(core::extract_isosurface(binary, 0.5f));
     std::printf("%8g %11zu %11zu %11zu %9zu %11zu %8.1f%%\n", static_cast<double>(iso),
                 mc.triangles.size(), tm.triangles.size(), bound.triangles, bound.regions,

@@ -92,10 +92,11 @@ using typemerge::bench::split;
 // row ends and the time by nothing).
 std::size_t classify_and_count_cuts(const core::Volume& volume, float iso,
                                     std::vector<std::uint8_t>& inside) {
-  const core::Samples& samples = volume.samples();
-  inside.resize(samples.size());
-  std::transform(samples.begin(), samples.end(), inside.begin(),
-                 [iso](float f) { return std::uint8_t{f >= iso}; });
+  inside.resize(static_cast<std::size_t>(volume.size().voxels()));
+  volume.visit([&](const auto* samples) {
+    std::transform(samples, samples + inside.size(), inside.begin(),
+                   [iso](float f) { return std::uint8_t{f >= iso}; });
+  });
   std::size_t cuts = 0;
   for (std::size_t i = 0; i + 1 < inside.size(); ++i) cuts += inside[i] != inside[i + 1];
   return cuts;
@@ -112,7 +113,8 @@ int usage() {
                "usage: extract_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
                "       [--algorithms mc,classic,tm,classify] [--threads 1,2] [--repeat 5]\n"
                "       [--vtk] [--vtk-python /usr/bin/python3] [--vertex-normals]\n"
-               "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n");
+               "       [--write-nrrd FILE] [--spacing refuse|resample] [--slab-layers N]\n"
+               "       [--float]  (float samples even where int16 holds them)\n");
   return 2;
 }
 
@@ -122,6 +124,7 @@ int main(int argc, char** argv) {
   std::string vtk_python = "/usr/bin/python3";
   bool vtk = false;
   bool vertex_normals = false;
+  bool float_samples = false;
   std::string series_dir, synthetic, nrrd_out, iso_list = "300,-500", algorithms = "mc,classic,tm",
               thread_list = "1", spacing = "refuse";
   int repeat = 5;
@@ -130,6 +133,10 @@ int main(int argc, char** argv) {
     const std::string key = argv[a];
     if (key == "--vtk") {
       vtk = true;
+      continue;
+    }
+    if (key == "--float") {
+      float_samples = true;
       continue;
     }
     if (key == "--vertex-normals") {
@@ -166,14 +173,15 @@ int main(int argc, char** argv) {
     volume = bench::synthetic_volume(nx, ny, nz);
     name = "synthetic " + synthetic;
   }
+  if (float_samples) volume.to_float();
   if (vtk && nrrd_out.empty()) nrrd_out = "/tmp/extract_bench_vtk.nrrd";
   if (!nrrd_out.empty()) {
     // int16 where every sample is an integer in range (a CT as VTK would read it).
-    const bool integral = std::all_of(volume.samples().begin(), volume.samples().end(),
-                                      [](float v) {
-                                        return v == std::floor(v) && v >= -32768.0f &&
-                                               v <= 32767.0f;
-                                      });
+    const bool integral =
+        volume.holds_int16() ||
+        std::all_of(volume.samples().begin(), volume.samples().end(), [](float v) {
+          return v == std::floor(v) && v >= -32768.0f && v <= 32767.0f;
+        });
     io::write_nrrd(volume, nrrd_out,
                    integral ? io::NrrdSampleType::int16 : io::NrrdSampleType::float32);
   }
@@ -181,10 +189,10 @@ int main(int argc, char** argv) {
   std::map<std::string, std::array<double, 3>> figures;
   const auto& size = volume.size();
   const double cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
-  std::printf("volume: %s, %lldx%lldx%lld (%.1f M cells, %.0f MiB of samples)\n", name.c_str(),
-              static_cast<long long>(size.nx), static_cast<long long>(size.ny),
+  std::printf("volume: %s, %lldx%lldx%lld (%.1f M cells, %.0f MiB of %s samples)\n",
+              name.c_str(), static_cast<long long>(size.nx), static_cast<long long>(size.ny),
               static_cast<long long>(size.nz), cells / 1e6,
-              double(volume.samples().size()) * 4 / (1 << 20));
+              double(volume.sample_bytes()) / (1 << 20), volume.holds_int16() ? "int16" : "float");
   std::printf("%-8s %-8s %3s %10s %10s %11s %10s %10s %9s %9s %9s\n", "iso", "algo", "thr", "ms",
               "Mcells/s", "triangles", "vertices", "peak+MiB", "boundary", "nonmanif", "degen");
   for (const std::string& iso_text : split(iso_list)) {

@@ -10,6 +10,8 @@
 #include <dcmtk/dcmjpeg/djdecode.h>
 #include <dcmtk/dcmjpls/djdecode.h>
 
+#include <cmath>
+#include <cstdint>
 #include <mutex>
 
 #include "dicom/header_reader.h"
@@ -68,6 +70,24 @@ struct HuMapping {
     return static_cast<float>(stored * slope + intercept);
   }
 };
+
+// Writes value(p) for the frame's n pixels into the target's floats or int16 samples. An
+// int16 value is the float's own integer (integer rescale makes every value an integer), so
+// both targets hold the same values; one out of range throws NotInt16.
+template <typename Value>
+void write_frame(const FrameTarget& target, std::size_t n, Value&& value) {
+  if (target.hu != nullptr) {
+    for (std::size_t p = 0; p < n; ++p) target.hu[p] = value(p);
+    return;
+  }
+  bool fits = true;
+  for (std::size_t p = 0; p < n; ++p) {
+    const float v = value(p);
+    fits = fits && v >= -32768.0f && v <= 32767.0f && v == std::trunc(v);
+    target.hu16[p] = static_cast<std::int16_t>(fits ? v : 0.0f);
+  }
+  if (!fits) throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
+}
 
 [[noreturn]] void fail(const SliceHeader& header, const std::string& reason) {
   throw PixelError(header.path.filename().string() + ": " + reason);
@@ -173,9 +193,8 @@ void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
                        std::to_string(header.columns) + "x" + std::to_string(header.rows));
     }
     const HuMapping mapping(*target.header);
-    for (std::size_t p = 0; p < decoded.samples.size(); ++p) {
-      target.hu[p] = mapping.hu(decoded.samples[p]);
-    }
+    write_frame(target, decoded.samples.size(),
+                [&](std::size_t p) { return mapping.hu(decoded.samples[p]); });
   }
 }
 
@@ -210,9 +229,8 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
     for (const FrameTarget& target : targets) {
       const HuMapping mapping(*target.header);
       const Uint16* frame = words + frame_pixels * target.header->frame;
-      for (std::size_t p = 0; p < frame_pixels; ++p) {
-        target.hu[p] = mapping.hu(layout.value(frame[p]));
-      }
+      write_frame(target, frame_pixels,
+                  [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
     }
   } else {
     Uint8* bytes = nullptr;
@@ -220,9 +238,8 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
     for (const FrameTarget& target : targets) {
       const HuMapping mapping(*target.header);
       const Uint8* frame = bytes + frame_pixels * target.header->frame;
-      for (std::size_t p = 0; p < frame_pixels; ++p) {
-        target.hu[p] = mapping.hu(layout.value(frame[p]));
-      }
+      write_frame(target, frame_pixels,
+                  [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
     }
   }
 }

@@ -6,6 +6,7 @@
 // RescaleSlope/RescaleIntercept is applied; PixelPaddingValue (and its range) become air.
 #pragma once
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -21,12 +22,22 @@ class PixelError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Where one frame's HU go: `hu` (floats) or, when `hu` is null, `hu16` (int16, for a frame
+// whose RescaleSlope and RescaleIntercept are integers).
 struct FrameTarget {
   const SliceHeader* header;  // the frame to decode (all targets come from the same file)
   float* hu;                  // rows × columns floats, x fastest
+  std::int16_t* hu16 = nullptr;  // rows × columns int16, x fastest (when hu is null)
 };
 
-// Throws PixelError naming the file and the reason.
+// An int16 target met a value outside −32768…32767 (or not an integer): the caller decodes
+// again into floats.
+class NotInt16 : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// Throws PixelError naming the file and the reason, or NotInt16.
 void read_frames_hu(const std::vector<FrameTarget>& targets);
 
 // Name of a transfer syntax for messages ("JPEG 2000 Image Compression (Lossless Only)").

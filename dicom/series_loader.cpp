@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <type_traits>
 #include <utility>
 
 #include <tbb/parallel_for.h>
@@ -15,14 +16,21 @@ namespace typemerge::dicom {
 namespace {
 
 // Decodes every acquired slice into `stack` (one slice per ordered header), file by file, so
-// a multi-frame file is decoded once.
+// a multi-frame file is decoded once; Sample is float or std::int16_t (then NotInt16 is
+// thrown for a value outside it).
 // Returns the lowest and highest value decoded, found by each file's thread while its slices
 // are in cache (a serial std::minmax_element afterwards was a fifth of the loader's time).
-std::pair<float, float> decode_stack(const SeriesInfo& series, float* stack,
+template <typename Sample>
+std::pair<float, float> decode_stack(const SeriesInfo& series, Sample* stack,
                                      std::size_t slice_voxels) {
   std::map<std::filesystem::path, std::vector<FrameTarget>> by_file;
   for (std::size_t k = 0; k < series.slices.size(); ++k) {
-    by_file[series.slices[k].path].push_back({&series.slices[k], stack + k * slice_voxels});
+    Sample* target = stack + k * slice_voxels;
+    if constexpr (std::is_same_v<Sample, float>) {
+      by_file[series.slices[k].path].push_back({&series.slices[k], target});
+    } else {
+      by_file[series.slices[k].path].push_back({&series.slices[k], nullptr, target});
+    }
   }
   // Files are independent and each writes its own slices, so they decode in parallel; DCMTK's
   // decoders keep no shared state once registered. The first error (in file order) is thrown,
@@ -30,25 +38,41 @@ std::pair<float, float> decode_stack(const SeriesInfo& series, float* stack,
   std::vector<const std::vector<FrameTarget>*> files;
   for (const auto& entry : by_file) files.push_back(&entry.second);
   std::vector<std::string> errors(files.size());
+  std::vector<char> not_int16(files.size(), 0);
   std::vector<std::pair<float, float>> ranges(files.size());
   tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t f) {
     try {
       read_frames_hu(*files[f]);
-      float lowest = std::numeric_limits<float>::infinity();
-      float highest = -std::numeric_limits<float>::infinity();
+      Sample lowest = std::numeric_limits<Sample>::max();
+      Sample highest = std::numeric_limits<Sample>::lowest();
+      if constexpr (std::is_same_v<Sample, float>) {
+        lowest = std::numeric_limits<float>::infinity();
+        highest = -std::numeric_limits<float>::infinity();
+      }
       for (const FrameTarget& target : *files[f]) {
+        const Sample* values = nullptr;
+        if constexpr (std::is_same_v<Sample, float>) {
+          values = target.hu;
+        } else {
+          values = target.hu16;
+        }
         for (std::size_t p = 0; p < slice_voxels; ++p) {
-          lowest = std::min(lowest, target.hu[p]);
-          highest = std::max(highest, target.hu[p]);
+          lowest = std::min(lowest, values[p]);
+          highest = std::max(highest, values[p]);
         }
       }
-      ranges[f] = {lowest, highest};
+      ranges[f] = {static_cast<float>(lowest), static_cast<float>(highest)};
+    } catch (const NotInt16&) {
+      not_int16[f] = 1;
     } catch (const PixelError& error) {
       errors[f] = error.what();
     }
   });
   for (const std::string& error : errors) {
     if (!error.empty()) throw PixelError(error);
+  }
+  if (std::find(not_int16.begin(), not_int16.end(), 1) != not_int16.end()) {
+    throw NotInt16("a value outside int16");
   }
   if (ranges.empty()) return {0.0f, 0.0f};
   std::pair<float, float> range = ranges.front();
@@ -57,6 +81,16 @@ std::pair<float, float> decode_stack(const SeriesInfo& series, float* stack,
     range.second = std::max(range.second, highest);
   }
   return range;
+}
+
+// Integer RescaleSlope and RescaleIntercept on every slice (of a size the int32 arithmetic of
+// a stored value cannot overflow): every value is an integer, most likely within int16.
+bool integer_rescale(const SeriesInfo& series) {
+  return std::all_of(series.slices.begin(), series.slices.end(), [](const SliceHeader& s) {
+    return std::abs(s.rescale_slope) <= 65536.0 && std::abs(s.rescale_intercept) <= 65536.0 &&
+           s.rescale_slope == std::trunc(s.rescale_slope) &&
+           s.rescale_intercept == std::trunc(s.rescale_intercept);
+  });
 }
 
 // Linear resampling along the slice line onto the uniform grid the geometry chose.
@@ -91,6 +125,10 @@ std::string hounsfield_plausibility_warning(float min_value, float max_value) {
   return text;
 }
 
+bool loads_as_int16(const SeriesInfo& series, const LoadOptions& options) {
+  return options.int16_samples && !series.geometry.needs_resampling && integer_rescale(series);
+}
+
 LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
   if (series.role != SeriesRole::volume) {
     throw LoadError("series " + series.id + " is a localizer (" + series.role_reason +
@@ -120,11 +158,28 @@ LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
   loaded.tilt_degrees = geometry.tilt_degrees;
   loaded.warnings = geometry.warnings;
   loaded.warnings.insert(loaded.warnings.end(), series.warnings.begin(), series.warnings.end());
-  // Every sample is written below: by the decoders, or by the resampling of every slice.
-  loaded.volume = core::Volume::uninitialized(size, geometry.index_to_patient);
+  // int16 samples when every value is an integer in int16's range: decided from the rescale
+  // of the headers, confirmed by the values (one outside int16 decodes the series again, into
+  // floats). Resampled slices are interpolated, so not integers: floats.
+  const bool int16 = loads_as_int16(series, options);
   std::pair<float, float> range;
   try {
-    if (geometry.needs_resampling) {
+    bool decoded = false;
+    if (int16) {
+      // Every sample is written by the decoders.
+      loaded.volume = core::Volume::uninitialized(size, geometry.index_to_patient,
+                                                  core::SampleType::int16);
+      try {
+        range = decode_stack(series, loaded.volume.int16_samples().data(), slice_voxels);
+        decoded = true;
+      } catch (const NotInt16&) {
+        loaded.volume = core::Volume{};
+      }
+    }
+    if (decoded) {
+    } else if (geometry.needs_resampling) {
+      // Every sample is written by the resampling of every slice.
+      loaded.volume = core::Volume::uninitialized(size, geometry.index_to_patient);
       core::Samples stack(slice_voxels * series.slices.size());
       decode_stack(series, stack.data(), slice_voxels);
       resample_stack(stack, geometry, slice_voxels, loaded.volume);
@@ -134,6 +189,7 @@ LoadedSeries load_series(const SeriesInfo& series, const LoadOptions& options) {
           std::minmax_element(loaded.volume.samples().begin(), loaded.volume.samples().end());
       range = {*lowest, *highest};
     } else {
+      loaded.volume = core::Volume::uninitialized(size, geometry.index_to_patient);
       range = decode_stack(series, loaded.volume.samples().data(), slice_voxels);
     }
   } catch (const PixelError& error) {

@@ -50,9 +50,11 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
   std::vector<runs::SliceRuns> tissue(nz), seed(nz), dense(nz);
   const runs::Kernel opening = disk(options.opening_mm, sx, sy);
   each_slice([&](std::size_t k) {
-    const float* values = volume.slice(static_cast<std::int64_t>(k));
-    tissue[k] = runs::threshold_above(values, cols, rows, options.body_threshold_hu);
-    dense[k] = runs::threshold_above(values, cols, rows, options.air_threshold_hu);
+    volume.visit([&](const auto* samples) {
+      const auto* values = samples + k * static_cast<std::size_t>(rows) * cols;
+      tissue[k] = runs::threshold_above(values, cols, rows, options.body_threshold_hu);
+      dense[k] = runs::threshold_above(values, cols, rows, options.air_threshold_hu);
+    });
     seed[k] = runs::dilate(runs::erode(tissue[k], opening), opening);
   });
   const std::size_t components = runs::keep_largest_component(seed);
@@ -119,13 +121,21 @@ StepResult remove_outside_body(core::Volume volume, const BodyMaskOptions& optio
   std::vector<std::int64_t> cleared_in_slice(nz, 0);
   each_slice([&](std::size_t k) {
     // Only what is denser than air and outside the body is written; nothing else is read.
-    float* values = volume.slice(static_cast<std::int64_t>(k));
     const runs::SliceRuns clear = runs::subtract(dense[k], keep[k]);
-    for (std::int32_t y = 0; y < rows; ++y) {
-      float* row = values + static_cast<std::ptrdiff_t>(y) * cols;
-      for (const runs::Run* r = clear.row_begin(y); r != clear.row_end(y); ++r) {
-        std::fill(row + r->begin, row + r->end, -1000.0f);
+    auto fill = [&](auto* values, auto air) {
+      for (std::int32_t y = 0; y < rows; ++y) {
+        auto* row = values + static_cast<std::ptrdiff_t>(y) * cols;
+        for (const runs::Run* r = clear.row_begin(y); r != clear.row_end(y); ++r) {
+          std::fill(row + r->begin, row + r->end, air);
+        }
       }
+    };
+    // Air is −1000 in either storage.
+    const auto slice = static_cast<std::int64_t>(k);
+    if (volume.holds_int16()) {
+      fill(volume.int16_slice(slice), std::int16_t{-1000});
+    } else {
+      fill(volume.slice(slice), -1000.0f);
     }
     const auto cleared = static_cast<std::int64_t>(clear.count());
     cleared_in_slice[k] = cleared;

@@ -15,7 +15,8 @@ using core::Vec3;
 using core::Volume;
 
 void assert_volume(const Volume& volume) {
-  assert(static_cast<std::int64_t>(volume.samples().size()) == volume.size().voxels());
+  assert(volume.sample_bytes() ==
+         static_cast<std::size_t>(volume.size().voxels()) * (volume.holds_int16() ? 2 : 4));
   assert(volume.geometry().determinant() != 0);
   (void)volume;
 }
@@ -110,20 +111,22 @@ IndexBox tissue_bounding_box(const Volume& volume, float threshold_hu) {
   assert_volume(volume);
   const auto& size = volume.size();
   IndexBox box{{size.nx, size.ny, size.nz}, {0, 0, 0}};
-  for (std::int64_t k = 0; k < size.nz; ++k) {
-    for (std::int64_t j = 0; j < size.ny; ++j) {
-      const float* row = volume.slice(k) + j * size.nx;
-      std::int64_t first = 0;
-      while (first < size.nx && !(row[first] >= threshold_hu)) ++first;
-      if (first == size.nx) continue;
-      std::int64_t last = size.nx - 1;
-      while (!(row[last] >= threshold_hu)) --last;
-      box.begin = {std::min(box.begin[0], first), std::min(box.begin[1], j),
-                   std::min(box.begin[2], k)};
-      box.end = {std::max(box.end[0], last + 1), std::max(box.end[1], j + 1),
-                 std::max(box.end[2], k + 1)};
+  volume.visit([&](const auto* samples) {
+    for (std::int64_t k = 0; k < size.nz; ++k) {
+      for (std::int64_t j = 0; j < size.ny; ++j) {
+        const auto* row = samples + (k * size.ny + j) * size.nx;
+        std::int64_t first = 0;
+        while (first < size.nx && !(row[first] >= threshold_hu)) ++first;
+        if (first == size.nx) continue;
+        std::int64_t last = size.nx - 1;
+        while (!(row[last] >= threshold_hu)) --last;
+        box.begin = {std::min(box.begin[0], first), std::min(box.begin[1], j),
+                     std::min(box.begin[2], k)};
+        box.end = {std::max(box.end[0], last + 1), std::max(box.end[1], j + 1),
+                   std::max(box.end[2], k + 1)};
+      }
     }
-  }
+  });
   if (box.empty()) return IndexBox{};
   return box;
 }
@@ -140,14 +143,21 @@ StepResult crop(const Volume& volume, const IndexBox& box) {
   geometry.origin =
       geometry.apply(static_cast<double>(kept.begin[0]), static_cast<double>(kept.begin[1]),
                      static_cast<double>(kept.begin[2]));
-  StepResult result{Volume(out, geometry), {}};
-  for (std::int64_t k = 0; k < out.nz; ++k) {
-    for (std::int64_t j = 0; j < out.ny; ++j) {
-      std::memcpy(
-          &result.volume.at(0, j, k),
-          volume.slice(kept.begin[2] + k) + (kept.begin[1] + j) * volume.size().nx + kept.begin[0],
-          static_cast<std::size_t>(out.nx) * sizeof(float));
+  // The same storage as the input; every sample is copied.
+  StepResult result{Volume::uninitialized(out, geometry, volume.sample_type()), {}};
+  const auto copy = [&](const auto* from, auto* to) {
+    for (std::int64_t k = 0; k < out.nz; ++k) {
+      for (std::int64_t j = 0; j < out.ny; ++j) {
+        std::copy_n(from + ((kept.begin[2] + k) * volume.size().ny + kept.begin[1] + j) *
+                               volume.size().nx + kept.begin[0],
+                    out.nx, to + (k * out.ny + j) * out.nx);
+      }
     }
+  };
+  if (volume.holds_int16()) {
+    copy(volume.int16_samples().data(), result.volume.int16_samples().data());
+  } else {
+    copy(volume.samples().data(), result.volume.samples().data());
   }
   StepRecord& record = result.record;
   record.step = "crop";

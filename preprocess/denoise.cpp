@@ -112,6 +112,7 @@ std::string voxels3(const double (&v)[3]) {
 }  // namespace
 
 StepResult gaussian_filter(Volume volume, const GaussianOptions& options) {
+  volume.to_float();  // filtered values are not integers
   require(positive(options.sigma_mm), std::string("gaussian_filter: sigma_mm must be > 0, got ") +
                                           detail::format_number(options.sigma_mm));
   require(std::isfinite(options.truncate) && options.truncate >= 1,
@@ -158,6 +159,7 @@ StepResult gaussian_filter(Volume volume, const GaussianOptions& options) {
 }
 
 StepResult median_filter(Volume volume, const MedianOptions& options) {
+  volume.to_float();  // filtered values are not integers
   require(
       options.in_plane_size == 3 || options.in_plane_size == 5,
       std::string("median_filter: in_plane_size must be 3 or 5 (cv::medianBlur on float), got ") +
@@ -194,6 +196,7 @@ StepResult median_filter(Volume volume, const MedianOptions& options) {
 }
 
 StepResult bilateral_filter(Volume volume, const BilateralOptions& options) {
+  volume.to_float();  // filtered values are not integers
   require(positive(options.sigma_mm), std::string("bilateral_filter: sigma_mm must be > 0, got ") +
                                           detail::format_number(options.sigma_mm));
   require(positive(options.sigma_hu), std::string("bilateral_filter: sigma_hu must be > 0, got ") +

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace typemerge::preprocess {
@@ -49,8 +50,11 @@ int otsu_split(const std::vector<std::uint64_t>& histogram) {
 OtsuThreshold otsu_threshold(const core::Volume& volume) {
   const auto& size = volume.size();
   if (size.voxels() == 0) throw std::invalid_argument("Otsu threshold of an empty volume");
-  const auto [low, high] = std::minmax_element(volume.samples().begin(), volume.samples().end());
-  const double lo = *low, hi = *high;
+  const auto voxels = static_cast<std::size_t>(size.voxels());
+  const auto [lo, hi] = volume.visit([&](const auto* samples) {
+    const auto [low, high] = std::minmax_element(samples, samples + voxels);
+    return std::pair<double, double>{static_cast<double>(*low), static_cast<double>(*high)};
+  });
   if (!std::isfinite(lo) || !std::isfinite(hi)) {
     throw std::invalid_argument("Otsu threshold: the volume holds a non-finite value");
   }
@@ -68,9 +72,20 @@ OtsuThreshold otsu_threshold(const core::Volume& volume) {
   assert(size.nx * size.ny < (std::int64_t{1} << 24));  // float counts stay exact
   std::vector<std::uint64_t> histogram(kOtsuBins, 0);
   cv::Mat counts;
+  // int16 slices are histogrammed as the floats of their integers (one slice of scratch).
+  std::vector<float> scratch(volume.holds_int16() ? static_cast<std::size_t>(size.nx * size.ny)
+                                                  : 0);
   for (std::int64_t k = 0; k < size.nz; ++k) {
+    const float* values = nullptr;
+    if (volume.holds_int16()) {
+      const std::int16_t* stored = volume.int16_slice(k);
+      std::copy(stored, stored + scratch.size(), scratch.begin());
+      values = scratch.data();
+    } else {
+      values = volume.slice(k);
+    }
     const cv::Mat slice(static_cast<int>(size.ny), static_cast<int>(size.nx), CV_32F,
-                        const_cast<float*>(volume.slice(k)));
+                        const_cast<float*>(values));
     cv::calcHist(&slice, 1, channels, cv::Mat(), counts, 1, bins, ranges);
     for (int b = 0; b < kOtsuBins; ++b) {
       histogram[static_cast<std::size_t>(b)] += static_cast<std::uint64_t>(counts.at<float>(b));

@@ -24,7 +24,8 @@ using core::Volume;
 using core::VolumeSize;
 
 void assert_volume(const Volume& volume) {
-  assert(static_cast<std::int64_t>(volume.samples().size()) == volume.size().voxels());
+  assert(volume.sample_bytes() ==
+         static_cast<std::size_t>(volume.size().voxels()) * (volume.holds_int16() ? 2 : 4));
   for (int axis = 0; axis < 3; ++axis) assert(volume.geometry().spacing(axis) > 0);
   (void)volume;
 }
@@ -62,13 +63,17 @@ double output_count(std::int64_t input_count, double step) {
   return std::floor(static_cast<double>(input_count - 1) / step + 1e-9) + 1;
 }
 
-// a + w·(b − a) over n samples.
-void blend(const float* a, const float* b, float w, float* out, std::int64_t n) {
+// a + w·(b − a) over n samples, in float (an int16 sample is the float of its integer).
+template <typename Sample>
+void blend(const Sample* a, const Sample* b, float w, float* out, std::int64_t n) {
   if (w == 0.0f) {
     std::copy(a, a + n, out);
     return;
   }
-  for (std::int64_t i = 0; i < n; ++i) out[i] = a[i] + w * (b[i] - a[i]);
+  for (std::int64_t i = 0; i < n; ++i) {
+    const float fa = a[i], fb = b[i];
+    out[i] = fa + w * (fb - fa);
+  }
 }
 
 // Resamples with index step `step` (old voxels per new voxel) along each axis.
@@ -104,8 +109,11 @@ StepResult resample_by_step(const Volume& volume, const double (&step)[3], const
   const std::int64_t j_high_limit = in.ny - 1;
   for (std::int64_t kp = 0; kp < out.nz; ++kp) {
     const std::int64_t k = taps_k.low[static_cast<std::size_t>(kp)];
-    blend(volume.slice(k), volume.slice(std::min(k + 1, k_high_limit)),
-          taps_k.weight[static_cast<std::size_t>(kp)], slice.data(), in.nx * in.ny);
+    volume.visit([&](const auto* samples) {
+      const auto n = in.nx * in.ny;
+      blend(samples + k * n, samples + std::min(k + 1, k_high_limit) * n,
+            taps_k.weight[static_cast<std::size_t>(kp)], slice.data(), n);
+    });
     float* out_slice = result.volume.slice(kp);
     for (std::int64_t jp = 0; jp < out.ny; ++jp) {
       const std::int64_t j = taps_j.low[static_cast<std::size_t>(jp)];

@@ -76,13 +76,16 @@ Kernel ellipse_kernel(int rx, int ry) {
   return kernel;
 }
 
-SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t rows,
-                          float threshold) {
+namespace {
+
+template <typename Sample>
+SliceRuns threshold_above_impl(const Sample* values, std::int32_t cols, std::int32_t rows,
+                               float threshold) {
   SliceRuns out;
   out.cols = cols;
   out.row_start.reserve(static_cast<std::size_t>(rows) + 1);
   for (std::int32_t y = 0; y < rows; ++y) {
-    const float* row = values + static_cast<std::ptrdiff_t>(y) * cols;
+    const Sample* row = values + static_cast<std::ptrdiff_t>(y) * cols;
     bool inside = false;
     std::int32_t begin = 0;
     std::int32_t x = 0;
@@ -114,6 +117,18 @@ SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t r
     out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
   }
   return out;
+}
+
+}  // namespace
+
+SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t rows,
+                          float threshold) {
+  return threshold_above_impl(values, cols, rows, threshold);
+}
+
+SliceRuns threshold_above(const std::int16_t* values, std::int32_t cols, std::int32_t rows,
+                          float threshold) {
+  return threshold_above_impl(values, cols, rows, threshold);
 }
 
 SliceRuns erode(const SliceRuns& in, const Kernel& kernel) {

@@ -48,8 +48,11 @@ struct Kernel {
 // std::logic_error if a kernel row is not one interval (an ellipse's rows always are).
 Kernel ellipse_kernel(int rx, int ry);
 
-// The pixels with value > threshold of a rows × cols slice of floats (row after row).
+// The pixels with value > threshold of a rows × cols slice of floats or int16 samples (row
+// after row; an int16 sample compares as the float of the same integer).
 SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t rows,
+                          float threshold);
+SliceRuns threshold_above(const std::int16_t* values, std::int32_t cols, std::int32_t rows,
                           float threshold);
 
 // cv::erode / cv::dilate with the kernel (anchor at its centre) and OpenCV's default border.

@@ -26,10 +26,13 @@ int run_volume(const VolumeOptions& options, std::ostream& log) {
   dicom::LoadedSeries& loaded = input.loaded;
   // int16 would silently round a fractional rescale; say so rather than lose it unnoticed.
   bool fractional = false;
-  for (float v : loaded.volume.samples()) {
-    if (v != std::nearbyint(v)) {
-      fractional = true;
-      break;
+  // int16 samples are whole HU by construction.
+  if (!loaded.volume.holds_int16()) {
+    for (float v : loaded.volume.samples()) {
+      if (v != std::nearbyint(v)) {
+        fractional = true;
+        break;
+      }
     }
   }
   if (fractional && !options.float_samples) {

@@ -135,10 +135,10 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   Volume distance(size, geometry);
   {
     auto& d = distance.samples();
-    const auto& values = field.samples();
-    d.resize(values.size());
     constexpr float kFar = std::numeric_limits<float>::infinity();
-    for (std::size_t v = 0; v < values.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
+    field.visit([&](const auto* values) {
+      for (std::size_t v = 0; v < d.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
+    });
     if (options.fill_enclosed) fill_enclosed_outside(d, size);
     squared_distance_transform(d, size, spacing, /*seeds_beyond_border=*/true, options.threads);
   }

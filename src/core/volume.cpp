@@ -1,7 +1,9 @@
 #include "volume.h"
 
+#include <algorithm>
 #include <cmath>
 #include <new>
+#include <stdexcept>
 
 #if defined(__linux__)
 #include <sys/mman.h>
@@ -56,12 +58,50 @@ double IndexToPatient::spacing(int axis) const {
 Volume::Volume(VolumeSize size, IndexToPatient geometry)
     : size_(size), geometry_(geometry), samples_(static_cast<std::size_t>(size.voxels()), 0.0f) {}
 
-Volume Volume::uninitialized(VolumeSize size, IndexToPatient geometry) {
+Volume Volume::uninitialized(VolumeSize size, IndexToPatient geometry, SampleType type) {
   Volume volume;
   volume.size_ = size;
   volume.geometry_ = geometry;
-  volume.samples_.resize(static_cast<std::size_t>(size.voxels()));  // default-initialised
+  volume.type_ = type;
+  // Default-initialised: the producer writes every sample.
+  if (type == SampleType::int16) {
+    volume.int16_.resize(static_cast<std::size_t>(size.voxels()));
+  } else {
+    volume.samples_.resize(static_cast<std::size_t>(size.voxels()));
+  }
   return volume;
+}
+
+void Volume::to_float() {
+  if (!holds_int16()) return;
+  Samples values(int16_.size());
+  std::copy(int16_.begin(), int16_.end(), values.begin());
+  samples_ = std::move(values);
+  int16_ = Int16Samples{};
+  type_ = SampleType::float32;
+}
+
+bool Volume::to_int16_if_exact() {
+  if (holds_int16()) return true;
+  if (!std::all_of(samples_.begin(), samples_.end(),
+                   [](float v) { return fits_int16(static_cast<double>(v)); })) {
+    return false;
+  }
+  Int16Samples values(samples_.size());
+  std::transform(samples_.begin(), samples_.end(), values.begin(),
+                 [](float v) { return static_cast<std::int16_t>(v); });
+  int16_ = std::move(values);
+  samples_ = Samples{};
+  type_ = SampleType::int16;
+  return true;
+}
+
+void Volume::throw_not_float() {
+  throw std::logic_error("core::Volume: float samples asked of an int16 volume");
+}
+
+void Volume::throw_not_int16() {
+  throw std::logic_error("core::Volume: int16 samples asked of a float volume");
 }
 
 }  // namespace typemerge::core

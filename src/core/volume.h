@@ -8,6 +8,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -81,39 +82,121 @@ struct DefaultInitAllocator : std::allocator<T> {
 };
 
 using Samples = std::vector<float, DefaultInitAllocator<float>>;
+using Int16Samples = std::vector<std::int16_t, DefaultInitAllocator<std::int16_t>>;
 
-// Dense HU samples, x fastest, then y, then z (slice after slice).
+// How a Volume stores its samples. int16 holds HU exactly as most CT series store them
+// (integer rescale, values within −32768…32767) in half the memory of float; float holds
+// everything else (non-integer rescale, interpolated, filtered or float inputs).
+enum class SampleType : std::uint8_t { float32, int16 };
+
+// Dense HU samples, x fastest, then y, then z (slice after slice), stored as float or int16
+// (SampleType). Every reader sees float values: `at() const` and `visit` work for both
+// storages, and an int16 sample reads as the float of the same integer, so arithmetic on the
+// values is the same whichever storage holds them. The float views (`slice`, `samples`,
+// `at` by reference) need float storage: they throw std::logic_error on an int16 volume
+// (`to_float()` converts it first).
 class Volume {
  public:
   Volume() = default;
-  // Every sample 0.
+  // Every sample 0, float storage.
   Volume(VolumeSize size, IndexToPatient geometry);
   // Samples left unset, for a producer that writes every one of them (the loader).
-  static Volume uninitialized(VolumeSize size, IndexToPatient geometry);
+  static Volume uninitialized(VolumeSize size, IndexToPatient geometry,
+                              SampleType type = SampleType::float32);
 
   const VolumeSize& size() const { return size_; }
   const IndexToPatient& geometry() const { return geometry_; }
   void set_geometry(const IndexToPatient& geometry) { geometry_ = geometry; }
 
+  SampleType sample_type() const { return type_; }
+  bool holds_int16() const { return type_ == SampleType::int16; }
+  // Bytes the samples occupy (2 or 4 per voxel).
+  std::size_t sample_bytes() const {
+    return holds_int16() ? int16_.size() * sizeof(std::int16_t) : samples_.size() * sizeof(float);
+  }
+
+  // The value of a sample, whatever the storage.
   float at(std::int64_t i, std::int64_t j, std::int64_t k) const {
-    return samples_[static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k))];
+    const auto v = static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k));
+    return holds_int16() ? static_cast<float>(int16_[v]) : samples_[v];
   }
+  // Float storage only.
   float& at(std::int64_t i, std::int64_t j, std::int64_t k) {
-    return samples_[static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k))];
+    return samples()[static_cast<std::size_t>(i + size_.nx * (j + size_.ny * k))];
   }
+  // Float storage only.
   const float* slice(std::int64_t k) const {
-    return samples_.data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+    return samples().data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
   }
   float* slice(std::int64_t k) {
-    return samples_.data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+    return samples().data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
   }
-  const Samples& samples() const { return samples_; }
-  Samples& samples() { return samples_; }
+  // Float storage only.
+  const Samples& samples() const {
+    if (holds_int16()) throw_not_float();
+    return samples_;
+  }
+  Samples& samples() {
+    if (holds_int16()) throw_not_float();
+    return samples_;
+  }
+  // int16 storage only (std::logic_error otherwise).
+  const Int16Samples& int16_samples() const {
+    if (!holds_int16()) throw_not_int16();
+    return int16_;
+  }
+  Int16Samples& int16_samples() {
+    if (!holds_int16()) throw_not_int16();
+    return int16_;
+  }
+  const std::int16_t* int16_slice(std::int64_t k) const {
+    return int16_samples().data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+  }
+  std::int16_t* int16_slice(std::int64_t k) {
+    return int16_samples().data() + static_cast<std::size_t>(size_.nx * size_.ny * k);
+  }
+
+  // Calls f(p) with p the first sample, `const float*` or `const std::int16_t*` as stored,
+  // and returns what it returns: hot loops are written once as a template over the sample
+  // type and instantiated for both.
+  template <typename F>
+  decltype(auto) visit(F&& f) const {
+    if (holds_int16()) return f(static_cast<const std::int16_t*>(int16_.data()));
+    return f(static_cast<const float*>(samples_.data()));
+  }
+
+  // int16 → float storage, in place (the same values); nothing for float storage. Holds
+  // both for a moment: 6 bytes a voxel.
+  void to_float();
+  // float → int16 storage when every sample is an integer in −32768…32767 (returns true;
+  // also true for int16 storage already); otherwise unchanged, false.
+  bool to_int16_if_exact();
 
  private:
+  [[noreturn]] static void throw_not_float();
+  [[noreturn]] static void throw_not_int16();
+
   VolumeSize size_;
   IndexToPatient geometry_;
+  SampleType type_ = SampleType::float32;
   Samples samples_;
+  Int16Samples int16_;
 };
+
+// True when `value` is an integer an int16 sample holds exactly (−0 is not: it would read
+// back as +0).
+inline bool fits_int16(double value) {
+  return value >= -32768.0 && value <= 32767.0 &&
+         value == static_cast<double>(static_cast<std::int32_t>(value)) &&
+         !(value == 0.0 && std::signbit(value));
+}
+
+// The integer t with v >= iso exactly when v >= t, for every int16 v: ⌈iso⌉, clamped to
+// −32768…32768 (32768: no sample is at or above iso; also for a NaN iso).
+inline std::int32_t int16_threshold(float iso) {
+  if (!(iso <= 32768.0f)) return 32768;
+  if (iso < -32768.0f) return -32768;
+  return static_cast<std::int32_t>(std::ceil(static_cast<double>(iso)));
+}
 
 }  // namespace typemerge::core

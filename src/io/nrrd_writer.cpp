@@ -36,8 +36,25 @@ void write_nrrd(const core::Volume& volume, const std::filesystem::path& path,
 
   AtomicFile file(path);
   file.write(header);
-  const core::Samples& samples = volume.samples();
   constexpr std::size_t kChunk = 1 << 18;
+  if (volume.holds_int16()) {
+    // Exact either way: the int16 samples as they are, or as the floats of their integers.
+    const core::Int16Samples& samples = volume.int16_samples();
+    if (type == NrrdSampleType::int16) {
+      file.write(samples.data(), samples.size() * sizeof(std::int16_t));
+    } else {
+      std::vector<float> chunk;
+      for (std::size_t start = 0; start < samples.size(); start += kChunk) {
+        const std::size_t end = std::min(samples.size(), start + kChunk);
+        chunk.assign(samples.begin() + static_cast<std::ptrdiff_t>(start),
+                     samples.begin() + static_cast<std::ptrdiff_t>(end));
+        file.write(chunk.data(), chunk.size() * sizeof(float));
+      }
+    }
+    file.commit();
+    return;
+  }
+  const core::Samples& samples = volume.samples();
   if (type == NrrdSampleType::float32) {
     file.write(samples.data(), samples.size() * sizeof(float));
   } else {

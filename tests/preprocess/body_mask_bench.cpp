@@ -67,6 +67,7 @@ int main(int argc, char** argv) {
       return 1;
     }
     volume = dicom::load_series(scan.series[*scan.default_series]).volume;
+    volume.to_float();  // the byte-mask oracle reads floats
   }
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                             static_cast<std::size_t>(std::max(1, threads)));

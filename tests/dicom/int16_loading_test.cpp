@@ -1,0 +1,107 @@
+// The loader's choice of sample storage: int16 for integer rescale with every value in range,
+// float otherwise (a fractional slope, a value beyond int16, resampled slices), and the same
+// values whichever it chose.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <functional>
+#include <string>
+
+#include "ct_writer/ct_writer.h"
+#include "dicom/series_loader.h"
+#include "dicom/series_scan.h"
+
+namespace typemerge::dicom {
+namespace {
+
+namespace fs = std::filesystem;
+using ct_writer::SeriesLayout;
+
+SeriesLayout layout(const std::string& seed) {
+  SeriesLayout l;
+  l.uid_seed = seed;
+  l.columns = 12;
+  l.rows = 10;
+  l.slices = 5;
+  l.pixel_spacing = {0.8, 0.7};
+  l.slice_spacing = 2.0;
+  l.hu = [](int i, int j, int k) { return (i > 3 && j > 2 && k > 0) ? 700.0 + i : -1000.0 + j; };
+  return l;
+}
+
+// Writes the series, loads it with int16 allowed and with float only.
+struct Loaded {
+  LoadedSeries allowed;
+  LoadedSeries float_only;
+};
+
+Loaded write_and_load(const SeriesLayout& l, const std::string& name) {
+  const fs::path dir =
+      fs::temp_directory_path() / ("typemerge_int16_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const auto specs = ct_writer::make_axial_series(l);
+  for (std::size_t k = 0; k < specs.size(); ++k) {
+    ct_writer::write_ct_slice(specs[k], dir / ("slice" + std::to_string(k) + ".dcm"));
+  }
+  const FolderScan scan = scan_folder(dir, ScanOptions{});
+  EXPECT_TRUE(scan.default_series.has_value());
+  const SeriesInfo& series = scan.series.at(*scan.default_series);
+  Loaded loaded{load_series(series), {}};
+  LoadOptions float_only;
+  float_only.int16_samples = false;
+  loaded.float_only = load_series(series, float_only);
+  fs::remove_all(dir);
+  return loaded;
+}
+
+void expect_same_values(const core::Volume& a, const core::Volume& b) {
+  ASSERT_EQ(a.size(), b.size());
+  const auto& n = a.size();
+  for (std::int64_t k = 0; k < n.nz; ++k) {
+    for (std::int64_t j = 0; j < n.ny; ++j) {
+      for (std::int64_t i = 0; i < n.nx; ++i) {
+        ASSERT_EQ(a.at(i, j, k), b.at(i, j, k)) << i << "," << j << "," << k;
+      }
+    }
+  }
+}
+
+TEST(Int16Loading, IntegerRescaleGivesInt16Samples) {
+  const Loaded loaded = write_and_load(layout("int16_integer"), "integer");
+  EXPECT_TRUE(loaded.allowed.volume.holds_int16());
+  EXPECT_FALSE(loaded.float_only.volume.holds_int16());
+  expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+  EXPECT_EQ(loaded.allowed.min_hu, loaded.float_only.min_hu);
+  EXPECT_EQ(loaded.allowed.max_hu, loaded.float_only.max_hu);
+  EXPECT_EQ(loaded.allowed.volume.at(5, 4, 2), 705.0f);
+}
+
+TEST(Int16Loading, FractionalSlopeGivesFloatSamples) {
+  SeriesLayout l = layout("int16_fractional");
+  l.rescale_slope = 0.5;
+  l.rescale_intercept = -1000;
+  l.stored_value = [](int i, int, int) { return 2 * i + 1; };  // odd: HU with a half
+  const Loaded loaded = write_and_load(l, "fractional");
+  EXPECT_FALSE(loaded.allowed.volume.holds_int16());
+  expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+  EXPECT_EQ(loaded.allowed.volume.at(1, 0, 0), -998.5f);
+}
+
+TEST(Int16Loading, ValueBeyondInt16FallsBackToFloat) {
+  SeriesLayout l = layout("int16_beyond");
+  l.bits_stored = 16;
+  l.high_bit = 15;
+  l.rescale_intercept = -1024;
+  // 65000 − 1024 = 63976 HU does not fit int16; every other value does.
+  l.stored_value = [](int i, int j, int k) { return i == 2 && j == 3 && k == 4 ? 65000 : 1000; };
+  const Loaded loaded = write_and_load(l, "beyond");
+  EXPECT_FALSE(loaded.allowed.volume.holds_int16());
+  expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+  EXPECT_EQ(loaded.allowed.volume.at(2, 3, 4), 63976.0f);
+  EXPECT_EQ(loaded.allowed.max_hu, 63976.0f);
+}
+
+}  // namespace
+}  // namespace typemerge::dicom
