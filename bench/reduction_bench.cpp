@@ -4,13 +4,14 @@
 //
 //   reduction_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]
 //                   [--epsilons 0.5,1,2] [--blocks 8,16,32] [--targets 0.25,0.1]
-//                   [--spacing resample] [--threads 1] [--vtk /usr/bin/python3]
+//                   [--spacing resample] [--threads 1] [--vtk /usr/bin/python3] [--baselines 0]
 //
 // --targets: shares of marching cubes' triangles; per share N, on one thread, extraction +
 // reduction: tm --reduce-to N (extract_type_merged_to_count, cap 5 finest steps), OpenMesh's
 // quadric decimater and meshoptimizer's simplifier on marching cubes' surface, and with --vtk
 // (bench/vtk_reduce.py, python3-vtk9) flying edges + vtkQuadricDecimation and + vtkDecimatePro
-// (topology preserved: the count it reaches). Each is measured against its own unreduced
+// (topology preserved: the count it reaches); --baselines 0 leaves the two decimators out;
+// --exhaust 1 adds, per bound, the merge collapsed as far as the bound allows. Each is measured against its own unreduced
 // surface (tm and the decimators against marching cubes', VTK's against flying edges').
 //
 // Prints, per iso × bound × block size: one-thread extraction time, triangles and their share
@@ -117,7 +118,8 @@ core::TriangleMesh meshopt_simplified(const core::TriangleMesh& mesh, std::size_
 int usage() {
   std::fprintf(stderr,
                "usage: reduction_bench (--series DIR | --synthetic NXxNYxNZ) [--iso 300,-500]\n"
-               "         [--epsilons 0.5,1,2] [--blocks 8,16,32] [--spacing resample]\n");
+               "         [--epsilons 0.5,1,2] [--blocks 8,16,32] [--spacing resample]\n"
+               "         [--targets 0.25,0.1] [--baselines 1] [--exhaust 0] [--threads 1] [--vtk PYTHON]\n");
   return 2;
 }
 
@@ -128,6 +130,8 @@ int main(int argc, char** argv) {
   std::string series_dir, synthetic, iso_list = "300,-500", epsilons = "0.5,1,2",
                                      blocks = "8,16,32", spacing, targets, vtk_python;
   unsigned threads = 1;
+  bool baselines = true;  // OpenMesh and meshoptimizer beside tm at each target
+  bool exhaust = false;   // each bound's merge also collapsed as far as the bound allows
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
     const std::string value = argv[i + 1];
@@ -140,6 +144,8 @@ int main(int argc, char** argv) {
     else if (key == "--threads") threads = static_cast<unsigned>(std::stoul(value));
     else if (key == "--targets") targets = value;
     else if (key == "--vtk") vtk_python = value;
+    else if (key == "--baselines") baselines = value != "0";
+    else if (key == "--exhaust") exhaust = value != "0";
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
@@ -190,6 +196,16 @@ int main(int argc, char** argv) {
         core::to_patient(tm, geometry);
         const std::string what = "tm " + epsilon_text + " mm, B " + block_text;
         print(what.c_str(), ms, measure(tm, mc, mc_check, threads), mc.triangles.size());
+        if (!exhaust) continue;
+        // The merge, then bounded collapses as far as the bound allows.
+        start = Clock::now();
+        core::TriangleMesh reduced = core::extract_type_merged(volume, iso, extract, options);
+        core::collapse_to_count(volume, iso, extract, reduced, 0, options.epsilon_mm);
+        const double reduced_ms = ms_since(start);
+        core::to_patient(reduced, geometry);
+        const std::string with = what + " + collapses";
+        print(with.c_str(), reduced_ms, measure(reduced, mc, mc_check, threads),
+              mc.triangles.size());
       }
     }
     if (targets.empty()) continue;
@@ -210,6 +226,14 @@ int main(int argc, char** argv) {
       std::snprintf(what, sizeof what, "tm --reduce-to (%s, %.2f mm)",
                     r.target_met ? "met" : "NOT met", r.bound_mm);
       print(what, ms, measure(r.mesh, mc, mc_check, threads), mc.triangles.size());
+      if (r.collapse.collapses > 0 || r.collapse.held_reference_triangles > 0) {
+        std::printf("    second stage: %zu collapses; refused: %zu topology, %zu shape, %zu distance, "
+                    "%zu crossing; %zu mc triangles held\n",
+                    r.collapse.collapses, r.collapse.refused_topology, r.collapse.refused_shape,
+                    r.collapse.refused_distance, r.collapse.refused_crossing,
+                    r.collapse.held_reference_triangles);
+      }
+      if (!baselines) continue;
 
       core::TriangleMesh openmesh = mc;
       start = Clock::now();

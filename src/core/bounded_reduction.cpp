@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/bounded_collapse.h"
+
 namespace typemerge::core {
 
 namespace {
@@ -19,6 +21,28 @@ struct Try {
 };
 
 }  // namespace
+
+CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
+                                TriangleMesh& merged, std::size_t target, double bound_mm) {
+  const IndexToPatient& geometry = volume.geometry();
+  TriangleMesh reference = extract_isosurface(volume, iso, extract);
+  to_patient(reference, geometry);
+  // The collapses judge distances, shapes and crossings in millimetres, on the floats
+  // to_patient makes (the ones written); the triangles they leave are then taken back to the
+  // index-space positions, undoing to_patient's winding flip.
+  TriangleMesh work;
+  work.positions = merged.positions;
+  work.triangles = merged.triangles;
+  to_patient(work, geometry);
+  const CollapseStats stats = collapse_within_bound(work, reference, {bound_mm, target});
+  const bool flipped = geometry.determinant() < 0;
+  for (auto& t : work.triangles) {
+    if (flipped) std::swap(t[1], t[2]);
+  }
+  merged.triangles = std::move(work.triangles);
+  drop_unused_vertices(merged);
+  return stats;
+}
 
 ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
                                              const ExtractOptions& extract,
@@ -47,10 +71,16 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
   };
 
   Try at_cap = run(cap_mm);
-  if (at_cap.mesh.triangles.size() <= target && at_cap.mesh.triangles.size() >= low_enough) {
-    // Within the window already; a smaller bound may be too: keep searching below.
-  } else if (at_cap.mesh.triangles.size() > target) {
-    return finish(std::move(at_cap));
+  if (at_cap.mesh.triangles.size() > target) {
+    // Merging alone cannot: merge, then bounded collapses, both within half the cap (the
+    // larger merge leaves the collapses fewer, better-shaped triangles to work on, so each
+    // bound reaches fewer triangles this way than by collapses from a finer merge); if that
+    // cannot either, the same within the cap.
+    for (const double bound : {0.5 * cap_mm, cap_mm}) {
+      Try start = bound == cap_mm ? std::move(at_cap) : run(bound);
+      result.collapse = collapse_to_count(volume, iso, extract, start.mesh, target, bound);
+      if (start.mesh.triangles.size() <= target || bound == cap_mm) return finish(std::move(start));
+    }
   }
   // Bracket: `few` leaves at most target (the smallest such bound so far), `many` more.
   std::optional<Try> few = std::move(at_cap);

@@ -1,23 +1,31 @@
 // Type merging to a triangle count: the smallest bound in millimetres (up to a cap) whose
-// merge has at most `target` triangles and at least 99 % of it.
+// surface has at most `target` triangles and at least 99 % of it.
 //
-// Every try is one extract_type_merged at a bound in mm (MergeOptions::epsilon_mm), so every
-// result keeps all its guarantees: closed, manifold, oriented, marching cubes' Euler
-// characteristic and components, no crossings, no more caps or needles than marching cubes,
-// and within its bound of marching cubes' surface, two-sided over both whole surfaces.
+// Every result keeps all type merging's guarantees: closed, manifold, oriented, marching
+// cubes' Euler characteristic and components, no crossings, no more caps or needles than
+// marching cubes, and within its bound of marching cubes' surface, two-sided over both whole
+// surfaces.
 //
-// The search: the cap first (if even it leaves more than `target` triangles, the target is
-// out of reach by merging and the cap's surface is returned with target_met false); then
-// bisection on log(bound) between a bound known to leave too many triangles and one known to
-// leave few enough, until the count falls in [0.99 target, target] or 24 tries are spent; the
-// surface returned is then the one with the smallest bound that left at most `target`
-// (target_met false if its count is below 0.99 target). The count is not strictly monotone in
-// the bound (a larger disk can replace smaller ones and need a fallback), so the bracket is
-// kept by the tries' counts, not assumed.
+// The search: the merge at the cap first. If it leaves few enough triangles, bisection on
+// log(bound) between a bound known to leave too many and one known to leave few enough, each
+// try one extract_type_merged at MergeOptions::epsilon_mm, until the count falls in
+// [0.99 target, target] or 24 tries are spent; the surface returned is the one with the
+// smallest bound that left at most `target` (target_met false if its count is below 0.99
+// target). The count is not strictly monotone in the bound (a larger disk can replace smaller
+// ones and need a fallback), so the bracket is kept by the tries' counts, not assumed.
+//
+// If even the cap's merge leaves more than `target`, merging alone cannot reach it: the
+// second stage, bounded collapses (bounded_collapse.h) of the merged surface against marching
+// cubes' own, within the same bound, run until the target: first at half the cap (the merge
+// and the collapses both within it), then, if that stops short, at the cap. A larger merge
+// leaves the collapses fewer, better-shaped triangles, so each bound reaches fewer triangles
+// this way than by collapses from a finer merge (docs/benchmarks.md). Where even the cap stops
+// short, the surface is as far as the cap allowed, with target_met false.
 #pragma once
 
 #include <cstddef>
 
+#include "core/bounded_collapse.h"
 #include "core/marching_cubes.h"
 #include "core/mesh.h"
 #include "core/type_merging.h"
@@ -34,7 +42,15 @@ struct ReductionResult {
   double bound_mm = 0.0;    // the bound of the surface returned
   bool target_met = false;  // 0.99 target <= triangles <= target
   std::size_t tries = 0;    // extractions made
+  CollapseStats collapse;   // the second stage's, when it ran
 };
+
+// The second stage: bounded collapses (bounded_collapse.h) of `merged` (index space, as
+// extract_type_merged makes it, within bound_mm of marching cubes' surface) down to `target`
+// triangles or as far as bound_mm allows, judged against marching cubes' surface of the same
+// volume, iso and options, in patient millimetres.
+CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
+                                TriangleMesh& merged, std::size_t target, double bound_mm);
 
 // `options` gives everything but epsilon_mm (its epsilon_voxels is ignored). cap_mm > 0.
 // Throws std::invalid_argument for target 0 or cap_mm not finite and positive.

@@ -1,0 +1,69 @@
+// Bounded collapses: fewer triangles on a type-merged surface, every guarantee kept.
+//
+// The second stage of a reduction (bounded_reduction.h), where merging alone cannot reach a
+// count within its bound. Each step is a half-edge collapse u → v: vertex u disappears, every
+// triangle of u not on the edge uv is re-spanned to v, the two on it go. No vertex moves, so
+// every vertex of the result is a vertex of the input, hence of marching cubes' surface.
+//
+// A collapse is made only when all of these hold (otherwise the surface is left as it was):
+//  - topology: the link condition (the common neighbours of u and v are exactly the two
+//    vertices opposite uv) and both of those keep three or more neighbours. A closed, oriented
+//    2-manifold stays one, with the same Euler characteristic and components;
+//  - no crossing: every new triangle is tested with the exact predicates of
+//    self_intersections.h against every live triangle whose box its box meets (a dynamic
+//    uniform grid) and against the other new triangles;
+//  - shape: no new triangle has an angle above 170° or below 1° (count_extreme_angles'
+//    caps and needles, so their counts never grow), and none turns more than 78° away from
+//    the triangle it replaces;
+//  - surface → reference within ε: for a new triangle T, dist(c, R) + max |p_i − c| ≤ ε at
+//    its centroid c proves every point of T within ε of the reference R (the distance to a
+//    set is 1-Lipschitz); where it does not, T is split in four and each part is tried, down
+//    to kLipschitzDepth levels, else the collapse is refused;
+//  - reference → surface within ε: every reference triangle is assigned one triangle of the
+//    surface that is within ε of its three corners, hence of all of it (the distance to one
+//    triangle is a convex function); where none is, its four parts of a midpoint split are
+//    assigned instead, down to kPatchDepth levels. The parts assigned to the triangles a
+//    collapse changes must each find such a triangle (or split into parts that do) among those
+//    around v afterwards, else the collapse is refused. A part no single triangle covers at
+//    the start is held: no collapse may change a triangle near it.
+// Both distances are computed in double on the float coordinates as stored; the bound holds
+// to rounding (far below 1e-6 of the coordinates).
+//
+// Order: the Garland–Heckbert quadric cost of moving u onto v (the planes of the input's
+// triangles around both, area-weighted), smallest first; a candidate refused now is tried
+// again when a collapse near it changes its neighbourhood.
+#pragma once
+
+#include <cstddef>
+
+#include "core/mesh.h"
+
+namespace typemerge::core {
+
+struct CollapseOptions {
+  double bound = 0.0;         // ε, in the meshes' units (> 0)
+  std::size_t target = 0;     // stop once at most this many triangles are left; 0: go on
+                              // while any collapse is allowed
+};
+
+struct CollapseStats {
+  std::size_t collapses = 0;
+  std::size_t refused_topology = 0;
+  std::size_t refused_shape = 0;
+  std::size_t refused_distance = 0;  // either direction
+  std::size_t refused_crossing = 0;
+  std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first
+};
+
+// Collapses `surface` in place (triangles only: positions are kept, unused ones stay unused;
+// compact afterwards) until `options.target` or until no allowed collapse is left.
+// Preconditions, the caller's: `surface` is a closed, oriented 2-manifold without crossing
+// triangles, in the same units and frame as `reference`, and every point of each is within
+// options.bound of the other. Throws std::invalid_argument for a bound not finite and > 0.
+CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
+                                    const CollapseOptions& options);
+
+// The vertices some triangle uses, renumbered in first-use order; triangles keep their order.
+void drop_unused_vertices(TriangleMesh& mesh);
+
+}  // namespace typemerge::core

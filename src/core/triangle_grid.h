@@ -1,0 +1,184 @@
+// TriangleGrid: the triangles of a fixed mesh bucketed in a uniform grid, for nearest-surface
+// queries (mesh_distance.h, bounded_collapse.h).
+//
+// Cells about two mean edge lengths wide (about two triangles a cell on a surface), at most
+// 1,024 along an axis so a stray far triangle cannot blow the grid up; CSR storage, 4 bytes a
+// bucket entry and 4 a cell. A query searches shells of cells outward and stops once no
+// unvisited cell can be nearer than the best triangle found (or than a cap).
+#pragma once
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/mesh.h"
+#include "core/mesh_distance.h"
+
+namespace typemerge::core::detail {
+
+using Point3 = std::array<double, 3>;
+inline Point3 as_point3(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
+
+// Triangles of a mesh bucketed by the grid cells their bounding boxes overlap (CSR). The mesh
+// must outlive the grid and not change; it must have at least one triangle.
+class TriangleGrid {
+ public:
+  explicit TriangleGrid(const TriangleMesh& mesh) : mesh_(mesh) {
+    lo_ = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
+           std::numeric_limits<double>::max()};
+    Point3 hi = {-lo_[0], -lo_[1], -lo_[2]};
+    for (const auto& t : mesh.triangles) {
+      for (auto v : t) {
+        for (int a = 0; a < 3; ++a) {
+          lo_[a] = std::min(lo_[a], double{mesh.positions[v][a]});
+          hi[a] = std::max(hi[a], double{mesh.positions[v][a]});
+        }
+      }
+    }
+    // Cell edge: about two triangles per cell for a surface (cells ~ area / edge²).
+    double mean_edge = 0.0;
+    for (const auto& t : mesh.triangles) {
+      const Point3 p0 = as_point3(mesh.positions[t[0]]);
+      const Point3 p1 = as_point3(mesh.positions[t[1]]);
+      mean_edge += std::sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
+                             (p1[2] - p0[2]) * (p1[2] - p0[2]));
+    }
+    mean_edge /= static_cast<double>(mesh.triangles.size());
+    cell_ = std::max(2.0 * mean_edge, 1e-9);
+    for (int a = 0; a < 3; ++a) {
+      // Cap the cell count per axis so a stray far triangle cannot blow up the grid.
+      const double extent = hi[a] - lo_[a];
+      cell_ = std::max(cell_, extent / 1024.0);
+    }
+    for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo_[a]) / cell_) + 1;
+    const std::size_t cells = static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2];
+
+    // Count, prefix sum, fill.
+    start_.assign(cells + 1, 0);
+    for_each_cell_of_triangles([&](std::size_t cell, std::uint32_t) { ++start_[cell + 1]; });
+    for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
+    entries_.resize(start_[cells]);
+    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for_each_cell_of_triangles(
+        [&](std::size_t cell, std::uint32_t t) { entries_[fill[cell]++] = t; });
+  }
+
+  // Squared distance from p to the nearest triangle; `stamp` (one entry per triangle, owned by
+  // the calling thread) avoids testing a triangle twice per query.
+  // With `cap` finite, the search stops once no triangle nearer than cap is left, returning
+  // at most cap². With `which`, the nearest triangle's index is stored there (unchanged when
+  // none is nearer than cap).
+  double nearest_squared(const Point3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,
+                         double cap = std::numeric_limits<double>::infinity(),
+                         std::uint32_t* which = nullptr) const {
+    std::array<int, 3> c{};
+    for (int a = 0; a < 3; ++a) {
+      c[a] = std::clamp(static_cast<int>(std::floor((p[a] - lo_[a]) / cell_)), 0, dims_[a] - 1);
+    }
+    double best = cap * cap;
+    const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
+    for (int r = 0; r <= max_ring; ++r) {
+      for (int z = c[2] - r; z <= c[2] + r; ++z) {
+        if (z < 0 || z >= dims_[2]) continue;
+        for (int y = c[1] - r; y <= c[1] + r; ++y) {
+          if (y < 0 || y >= dims_[1]) continue;
+          const bool inner = std::abs(z - c[2]) < r && std::abs(y - c[1]) < r;
+          for (int x = c[0] - r; x <= c[0] + r; x += (inner ? 2 * r : 1)) {
+            if (x >= 0 && x < dims_[0]) visit(x, y, z, p, stamp, query, best, which);
+            if (r == 0) break;
+          }
+        }
+      }
+      // Every cell outside the block [c − r, c + r] is at least `gap` away from p.
+      double gap = std::numeric_limits<double>::infinity();
+      for (int a = 0; a < 3; ++a) {
+        gap = std::min(gap, p[a] - (lo_[a] + (c[a] - r) * cell_));
+        gap = std::min(gap, lo_[a] + (c[a] + r + 1) * cell_ - p[a]);
+      }
+      if (gap > 0.0 && gap * gap >= best) break;
+    }
+    return best;
+  }
+
+ private:
+  template <typename F>
+  void for_each_cell_of_triangles(const F& f) const {
+    for (std::uint32_t t = 0; t < mesh_.triangles.size(); ++t) {
+      std::array<int, 3> c0{};
+      std::array<int, 3> c1{};
+      for (int a = 0; a < 3; ++a) {
+        double mn = std::numeric_limits<double>::max();
+        double mx = -mn;
+        for (auto v : mesh_.triangles[t]) {
+          mn = std::min(mn, double{mesh_.positions[v][a]});
+          mx = std::max(mx, double{mesh_.positions[v][a]});
+        }
+        c0[a] = std::clamp(static_cast<int>((mn - lo_[a]) / cell_), 0, dims_[a] - 1);
+        c1[a] = std::clamp(static_cast<int>((mx - lo_[a]) / cell_), 0, dims_[a] - 1);
+      }
+      for (int z = c0[2]; z <= c1[2]; ++z) {
+        for (int y = c0[1]; y <= c1[1]; ++y) {
+          for (int x = c0[0]; x <= c1[0]; ++x) f(cell_index(x, y, z), t);
+        }
+      }
+    }
+  }
+
+  std::size_t cell_index(int x, int y, int z) const {
+    return static_cast<std::size_t>(x) +
+           static_cast<std::size_t>(dims_[0]) *
+               (static_cast<std::size_t>(y) + static_cast<std::size_t>(dims_[1]) * z);
+  }
+
+  // Squared distance from p to the box [lo, hi] (0 inside).
+  static double box_distance_squared(const Point3& p, const Point3& lo, const Point3& hi) {
+    double d2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double d = std::max({lo[a] - p[a], 0.0, p[a] - hi[a]});
+      d2 += d * d;
+    }
+    return d2;
+  }
+
+  void visit(int x, int y, int z, const Point3& p, std::vector<std::uint32_t>& stamp,
+             std::uint32_t query, double& best, std::uint32_t* which) const {
+    const Point3 cell_lo = {lo_[0] + x * cell_, lo_[1] + y * cell_, lo_[2] + z * cell_};
+    const Point3 cell_hi = {cell_lo[0] + cell_, cell_lo[1] + cell_, cell_lo[2] + cell_};
+    // A triangle's nearest point to p lies in some cell the triangle is bucketed in; that cell
+    // is nearer than `best` whenever the triangle matters, so farther cells can be skipped
+    // (without stamping their triangles).
+    if (box_distance_squared(p, cell_lo, cell_hi) >= best) return;
+    const std::size_t cell = cell_index(x, y, z);
+    for (std::uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
+      const std::uint32_t t = entries_[i];
+      if (stamp[t] == query) continue;
+      stamp[t] = query;
+      const auto& tri = mesh_.triangles[t];
+      const Point3 a = as_point3(mesh_.positions[tri[0]]);
+      const Point3 b = as_point3(mesh_.positions[tri[1]]);
+      const Point3 c = as_point3(mesh_.positions[tri[2]]);
+      const Point3 box_lo = {std::min({a[0], b[0], c[0]}), std::min({a[1], b[1], c[1]}),
+                         std::min({a[2], b[2], c[2]})};
+      const Point3 box_hi = {std::max({a[0], b[0], c[0]}), std::max({a[1], b[1], c[1]}),
+                         std::max({a[2], b[2], c[2]})};
+      if (box_distance_squared(p, box_lo, box_hi) >= best) continue;
+      const double d2 = point_triangle_distance_squared(p, a, b, c);
+      if (d2 < best) {
+        best = d2;
+        if (which != nullptr) *which = t;
+      }
+    }
+  }
+
+  const TriangleMesh& mesh_;
+  Point3 lo_{};
+  double cell_ = 1.0;
+  std::array<int, 3> dims_{};
+  std::vector<std::uint32_t> start_;
+  std::vector<std::uint32_t> entries_;
+};
+
+}  // namespace typemerge::core::detail

@@ -1,0 +1,162 @@
+// collapse_within_bound (core/bounded_collapse.h): every guarantee of the header, on merged
+// surfaces of synthetic volumes, and the refusals that keep them.
+#include "core/bounded_collapse.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <set>
+#include <stdexcept>
+
+#include "core/marching_cubes.h"
+#include "core/mesh_checks.h"
+#include "core/mesh_distance.h"
+#include "core/self_intersections.h"
+#include "core/type_merging.h"
+#include "test_volumes.h"
+
+namespace typemerge::core {
+namespace {
+
+ExtractOptions one_thread() {
+  ExtractOptions extract;
+  extract.threads = 1;
+  extract.vertex_normals = false;
+  return extract;
+}
+
+// Marching cubes' surface and type merging's at `bound_mm`, both in patient mm.
+struct Surfaces {
+  TriangleMesh mc;
+  TriangleMesh merged;
+};
+Surfaces surfaces_of(const Volume& volume, float iso, double bound_mm) {
+  Surfaces s;
+  s.mc = extract_isosurface(volume, iso, one_thread());
+  MergeOptions merge;
+  merge.epsilon_mm = bound_mm;
+  s.merged = extract_type_merged(volume, iso, one_thread(), merge);
+  to_patient(s.mc, volume.geometry());
+  to_patient(s.merged, volume.geometry());
+  return s;
+}
+
+// Gaussian blobs on sheared, anisotropic voxels.
+Volume blobs(unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(5.0, 27.0);
+  std::array<std::array<double, 3>, 6> centres{};
+  for (auto& c : centres) c = {u(rng), u(rng), u(rng)};
+  Volume volume = test::sample_volume(32, 32, 32, [&](double x, double y, double z) {
+    double f = 0.0;
+    for (const auto& c : centres) {
+      f += std::exp(-((x - c[0]) * (x - c[0]) + (y - c[1]) * (y - c[1]) + (z - c[2]) * (z - c[2])) /
+                    18.0);
+    }
+    return f - 0.4;
+  });
+  IndexToPatient geometry;
+  geometry.axes = {{{0.8, 0, 0}, {0, 0.8, 0}, {0, 0.3, 2.0}}};
+  volume.set_geometry(geometry);
+  return volume;
+}
+
+// What the header promises of a collapsed surface against its reference.
+void expect_guarantees(const TriangleMesh& reference, const TriangleMesh& before,
+                       const TriangleMesh& after, double bound) {
+  const MeshCheck r = check_mesh(reference);
+  const MeshCheck a = check_mesh(after);
+  EXPECT_TRUE(a.closed_manifold());
+  EXPECT_EQ(a.euler_characteristic, r.euler_characteristic);
+  EXPECT_EQ(a.components, r.components);
+  EXPECT_TRUE(find_self_intersections(after).pairs.empty());
+  const ExtremeAngles ref_shapes = count_extreme_angles(before);
+  const ExtremeAngles shapes = count_extreme_angles(after);
+  EXPECT_LE(shapes.above_170, ref_shapes.above_170);
+  EXPECT_LE(shapes.below_1, ref_shapes.below_1);
+  EXPECT_LE(surface_distance(reference, after, 0.1, 1).hausdorff(), bound + 1e-3);
+  // Every vertex is one of the input's (half-edge collapses move none).
+  std::set<std::array<float, 3>> input(before.positions.begin(), before.positions.end());
+  for (const auto& p : after.positions) EXPECT_TRUE(input.count(p) == 1);
+}
+
+TEST(BoundedCollapse, ReachesTheTargetKeepingEveryGuarantee) {
+  for (unsigned seed : {3u, 11u}) {
+    SCOPED_TRACE(seed);
+    const Volume volume = blobs(seed);
+    const Surfaces s = surfaces_of(volume, 0.0f, 1.0);
+    TriangleMesh collapsed = s.merged;
+    const std::size_t target = s.mc.triangles.size() / 10;
+    ASSERT_GT(s.merged.triangles.size(), target);
+    const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {1.5, target});
+    drop_unused_vertices(collapsed);
+    EXPECT_GT(stats.collapses, 0u);
+    EXPECT_LE(collapsed.triangles.size(), target);
+    EXPECT_GE(collapsed.triangles.size() + 2, target);
+    EXPECT_EQ(collapsed.triangles.size(), s.merged.triangles.size() - 2 * stats.collapses);
+    expect_guarantees(s.mc, s.merged, collapsed, 1.5);
+  }
+}
+
+TEST(BoundedCollapse, StopsWhereTheBoundStopsIt) {
+  const Volume volume = blobs(5);
+  const Surfaces s = surfaces_of(volume, 0.0f, 0.3);
+  TriangleMesh collapsed = s.merged;
+  const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {0.3, 4});
+  drop_unused_vertices(collapsed);
+  EXPECT_GT(stats.collapses, 0u);
+  EXPECT_GT(collapsed.triangles.size(), 4u);  // a small bound cannot reach 4 triangles
+  EXPECT_GT(stats.refused_distance, 0u);
+  EXPECT_EQ(stats.held_reference_triangles, 0u);  // every one covered by parts
+  expect_guarantees(s.mc, s.merged, collapsed, 0.3);
+}
+
+// Two wavy plates 1 mm thick, 1 mm apart, with a bound of 3 mm: chords across a trough of the
+// lower plate's top would rise into the upper plate, closer than the bound to both surfaces;
+// the crossing test must refuse them.
+TEST(BoundedCollapse, CloseLayersDoNotCollapseIntoEachOther) {
+  Volume volume = test::sample_volume(72, 40, 36, [](double x, double y, double z) {
+    const double wave = 8.0 * std::sin(x / 6.0);  // voxels of 0.25 mm
+    const double lower = 2.0 - std::abs(z - 12.0 - wave);
+    const double upper = 2.0 - std::abs(z - 20.0 - wave);
+    const double inside_square = std::min(std::min(x - 2.0, 69.0 - x), std::min(y - 2.0, 37.0 - y));
+    return std::min(std::max(lower, upper), inside_square);
+  });
+  IndexToPatient geometry;
+  geometry.axes = {{{0.25, 0, 0}, {0, 0.25, 0}, {0, 0, 0.25}}};
+  volume.set_geometry(geometry);
+  const Surfaces s = surfaces_of(volume, 0.0f, 0.5);
+  TriangleMesh collapsed = s.merged;
+  const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {3.0, 0});
+  drop_unused_vertices(collapsed);
+  EXPECT_GT(stats.collapses, 0u);
+  EXPECT_GT(stats.refused_crossing, 0u);
+  expect_guarantees(s.mc, s.merged, collapsed, 3.0);
+}
+
+TEST(BoundedCollapse, RejectsABadBound) {
+  const Volume volume = blobs(3);
+  Surfaces s = surfaces_of(volume, 0.0f, 1.0);
+  EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {0.0, 0}), std::invalid_argument);
+  EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {NAN, 0}), std::invalid_argument);
+  EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {INFINITY, 0}), std::invalid_argument);
+}
+
+TEST(BoundedCollapse, DropUnusedVerticesRenumbersInFirstUseOrder) {
+  TriangleMesh mesh;
+  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
+  mesh.normals = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, -1}, {0, -1, 0}};
+  mesh.triangles = {{4, 2, 0}, {0, 2, 4}};
+  drop_unused_vertices(mesh);
+  ASSERT_EQ(mesh.positions.size(), 3u);
+  EXPECT_EQ(mesh.positions[0][0], 4.0f);
+  EXPECT_EQ(mesh.positions[1][0], 2.0f);
+  EXPECT_EQ(mesh.positions[2][0], 0.0f);
+  EXPECT_EQ(mesh.normals[0][1], -1.0f);
+  EXPECT_EQ(mesh.triangles[0], (std::array<std::uint32_t, 3>{0, 1, 2}));
+  EXPECT_EQ(mesh.triangles[1], (std::array<std::uint32_t, 3>{2, 1, 0}));
+}
+
+}  // namespace
+}  // namespace typemerge::core
