@@ -95,7 +95,8 @@ ordered_json reduction_json(const SurfaceResult& result) {
           {"bound_mm", r.bound_mm},
           {"cap_mm", r.cap_mm},
           {"target_met", r.target_met},
-          {"extractions", r.extractions}};
+          {"extractions", r.extractions},
+          {"collapses", r.collapses}};
 }
 
 ordered_json distance_json(const SurfaceResult& result) {

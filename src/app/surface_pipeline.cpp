@@ -178,7 +178,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         stats = reduced.stats;
         result.reduction = ReductionSummary{finish.reduce_to_triangles, mesh.triangles.size(),
                                             reduced.bound_mm, cap, reduced.target_met,
-                                            reduced.tries};
+                                            reduced.tries, reduced.collapse.collapses};
         if (!reduced.target_met) {
           result.warnings.push_back(
               "--reduce-to " + std::to_string(finish.reduce_to_triangles) + " not met: " +
@@ -191,7 +191,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
         if (finish.max_error_mm > 0) {
           result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,
-                                              finish.max_error_mm, true, 1};
+                                              finish.max_error_mm, true, 1, 0};
         }
       }
       std::size_t disks = 0;
@@ -203,6 +203,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       if (result.reduction) {
         details.emplace_back("bound_mm", number(result.reduction->bound_mm));
         details.emplace_back("extractions", std::to_string(result.reduction->extractions));
+        details.emplace_back("collapses", std::to_string(result.reduction->collapses));
       }
     } else {
       mesh = core::extract_isosurface(source, iso, extract);

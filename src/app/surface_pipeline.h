@@ -89,6 +89,7 @@ struct ReductionSummary {
   double cap_mm = 0.0;               // the largest bound the count could use
   bool target_met = true;            // 0.99 N <= triangles <= N (true for a bound alone)
   std::size_t extractions = 1;
+  std::size_t collapses = 0;         // of the second stage (core/bounded_collapse.h)
 };
 
 // Sampled distances (mm) to marching cubes' surface on the same grid.
