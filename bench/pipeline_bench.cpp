@@ -4,7 +4,11 @@
 //   pipeline_bench (--series DIR | --synthetic NXxNYxNZ [--as-dicom]) [--repeat-z K]
 //                  [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]
 //                  [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]
-//                  [--typemerge build/src/app/typemerge]
+//                  [--typemerge build/src/app/typemerge] [--memory-only]
+//
+// --memory-only prints only the memory figure of `typemerge convert` (tm) per surface and
+// thread count: its peak RSS as its own process, less 24 bytes a triangle of its output, over
+// the series' voxels (print_memory_figures).
 //
 // --as-dicom writes the synthetic volume as a CT series (tools/ct_writer, explicit little
 // endian, 12-bit stored values) into --out-dir/pipeline_bench_dicom_NXxNYxNZ and measures it
@@ -244,11 +248,17 @@ struct Input {
 // K copies of the slices along z; the geometry keeps its slice step, so the stack is longer.
 core::Volume repeat_along_z(const core::Volume& volume, int copies) {
   const auto& size = volume.size();
-  core::Volume stacked({size.nx, size.ny, size.nz * copies}, volume.geometry());
-  const std::size_t block = volume.samples().size();
-  for (int c = 0; c < copies; ++c) {
-    std::copy(volume.samples().begin(), volume.samples().end(),
-              stacked.samples().begin() + static_cast<std::ptrdiff_t>(block * std::size_t(c)));
+  // The same storage (int16 or float) as the volume; every sample is copied.
+  core::Volume stacked = core::Volume::uninitialized({size.nx, size.ny, size.nz * copies},
+                                                     volume.geometry(), volume.sample_type());
+  const auto block = static_cast<std::size_t>(size.voxels());
+  auto copy = [&](const auto* from, auto* to) {
+    for (int c = 0; c < copies; ++c) std::copy(from, from + block, to + block * std::size_t(c));
+  };
+  if (volume.holds_int16()) {
+    copy(volume.int16_samples().data(), stacked.int16_samples().data());
+  } else {
+    copy(volume.samples().data(), stacked.samples().data());
   }
   return stacked;
 }
@@ -508,6 +518,48 @@ long convert_process_peak_kib(const std::string& typemerge, const RunSettings& s
   return in ? kib : -1;
 }
 
+// --memory-only: per surface and thread count, `typemerge convert` (tm, the default) as its
+// own process: its peak RSS less 24 bytes a triangle of its output (the mesh as
+// core::TriangleMesh holds it), over the series' voxels — what a conversion holds besides
+// its result. Needs --series (or --as-dicom).
+int print_memory_figures(const std::string& typemerge, const Input& input,
+                         const std::vector<Surface>& surfaces, const std::string& thread_list,
+                         const fs::path& out_dir) {
+  if (input.series_dir.empty()) {
+    std::fprintf(stderr, "--memory-only needs --series or --as-dicom\n");
+    return 2;
+  }
+  const auto scan = dicom::scan_folder(input.series_dir, {});
+  if (!scan.default_series) throw std::runtime_error("no usable series in " + input.series_dir);
+  const dicom::SeriesInfo& series = scan.series[*scan.default_series];
+  const double voxels = double(series.columns) * double(series.rows) *
+                        double(series.geometry.output_slices);
+  std::printf("memory: %s, %.1f M voxels, %s\n", input.series_dir.c_str(), voxels / 1e6,
+              typemerge.c_str());
+  for (const Surface& surface : surfaces) {
+    for (const std::string& threads : split(thread_list)) {
+      const RunSettings settings{input, surface, static_cast<unsigned>(std::stoi(threads)),
+                                 out_dir};
+      const long peak_kib = convert_process_peak_kib(typemerge, settings, "tm");
+      const fs::path stl = out_dir / ("pipeline_bench_process_" + surface.name + ".stl");
+      if (peak_kib < 0 || !fs::exists(stl)) {
+        std::printf("  %s: could not run %s under /usr/bin/time\n", surface.name.c_str(),
+                    typemerge.c_str());
+        continue;
+      }
+      const double triangles = double((fs::file_size(stl) - 84) / 50);  // binary STL
+      const double peak = double(peak_kib) * 1024.0;
+      const double mesh_bytes = 24.0 * triangles;
+      std::printf("  convert --preset/--iso %s --threads %s: peak RSS %.1f MiB, %.0f triangles "
+                  "(~%.1f MiB): %.2f bytes a voxel besides the mesh\n",
+                  surface.name.c_str(), threads.c_str(), peak / (1 << 20), triangles,
+                  mesh_bytes / (1 << 20), (peak - mesh_bytes) / voxels);
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
+
 // ---- the VTK companion --------------------------------------------------------------------
 
 // Runs bench/vtk_pipeline.py and collects its "stage NAME WALL_MS CPU_MS TRIANGLES PEAK_MIB"
@@ -547,7 +599,7 @@ int usage() {
                "       [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]\n"
                "       [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]\n"
                "       [--vtk-python /usr/bin/python3] [--vtk-script bench/vtk_pipeline.py]\n"
-               "       [--typemerge build/src/app/typemerge]\n");
+               "       [--typemerge build/src/app/typemerge] [--memory-only]\n");
   return 2;
 }
 
@@ -560,7 +612,7 @@ int run(int argc, char** argv) {
                       .string(),
       vtk_script = std::string(TYPEMERGE_BENCH_SOURCE_DIR) + "/vtk_pipeline.py";
   int repeat = 3;
-  bool vtk = false, convert = true, as_dicom = false;
+  bool vtk = false, convert = true, as_dicom = false, memory_only = false;
   for (int a = 1; a < argc; ++a) {
     const std::string key = argv[a];
     if (key == "--vtk") {
@@ -573,6 +625,10 @@ int run(int argc, char** argv) {
     }
     if (key == "--as-dicom") {
       as_dicom = true;
+      continue;
+    }
+    if (key == "--memory-only") {
+      memory_only = true;
       continue;
     }
     if (a + 1 >= argc) return usage();
@@ -638,6 +694,7 @@ int run(int argc, char** argv) {
   }
 
   fs::create_directories(out_dir);
+  if (memory_only) return print_memory_figures(typemerge, input, surfaces, thread_list, out_dir);
   g_peak_resets = reset_peak_rss();
   const std::string name = input.series_dir.empty()
                                ? "synthetic " + std::to_string(input.nx) + "x" +

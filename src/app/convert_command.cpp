@@ -408,7 +408,9 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   progress("reading " + options.input.input);
   LoadedInput input = load_input(options.input, options.series_id, [&](const InputShape& s) {
     const std::uint64_t voxels = working_voxels(s.grid_size(), s.spacing_mm(), options.voxel_size_mm);
-    const std::uint64_t estimate = conversion_memory_estimate(voxels, shape);
+    ConversionShape series_shape = shape;
+    series_shape.int16_samples = s.int16_samples;
+    const std::uint64_t estimate = conversion_memory_estimate(voxels, series_shape);
     if (estimate > max_memory) {
       throw CommandError{kExitInputRefused,
                          "series " + s.id + " would need about " + format_megabytes(estimate) +

@@ -151,7 +151,8 @@ LoadedInput load_input(const InputOptions& options, const std::string& series_id
   input.scan = scan_input(options);
   input.series = &select_series(input.scan, series_id);
   if (before_load) {
-    before_load({input.series->id, input.series->grid_size(), input.series->spacing_mm()});
+    before_load({input.series->id, input.series->grid_size(), input.series->spacing_mm(),
+                 dicom::loads_as_int16(*input.series)});
   }
   try {
     input.loaded = dicom::load_series(*input.series);

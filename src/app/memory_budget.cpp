@@ -13,7 +13,8 @@ namespace typemerge::app {
 std::uint64_t conversion_memory_estimate(std::uint64_t voxels, const ConversionShape& shape) {
   const double surfaces = static_cast<double>(std::max<std::size_t>(shape.surfaces, 1));
   const double windows = static_cast<double>(shape.window_surfaces);
-  const double per_voxel = 4.0 + 2.0 * surfaces + 5.0 * windows +
+  const double volume_bytes = shape.int16_samples ? 2.0 : 4.0;
+  const double per_voxel = volume_bytes + 2.0 * surfaces + 5.0 * windows +
                            surfaces * ((shape.reduces ? 4.0 : 0.0) + (shape.hollows ? 10.0 : 0.0));
   const double fixed_mib = 192.0 + 128.0 * (surfaces - 1.0) + 192.0 * windows +
                            surfaces * ((shape.reduces ? 64.0 : 0.0) + (shape.hollows ? 192.0 : 0.0));

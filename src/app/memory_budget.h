@@ -20,11 +20,13 @@ struct ConversionShape {
   std::size_t window_surfaces = 0;
   bool reduces = false;
   bool hollows = false;
+  // The series loads as int16 samples (dicom::loads_as_int16): 2 bytes a voxel, not 4.
+  bool int16_samples = false;
 };
 
 // Address space a conversion of `voxels` voxels needs, an upper bound that --max-memory is
 // checked against before loading (and that batch schedules by): 1.1 × (bytes a voxel × voxels +
-// fixed MiB), with 4 bytes a voxel for the volume, 2 more per surface and 5 more per window
+// fixed MiB), with 4 bytes a voxel for the volume (2 for int16 samples), 2 more per surface and 5 more per window
 // (its field and larger surface), per surface 4 more with --reduce-to and 10 with --hollow;
 // fixed: 192 MiB of the process's own mappings (libraries, thread stacks, malloc arenas), 128
 // per extra surface thread, 192 per window, per surface 64 with --reduce-to and 192 with

@@ -56,7 +56,8 @@ Volume integer_volume(std::int64_t nx, std::int64_t ny, std::int64_t nz, unsigne
   for (std::int64_t k = 0; k < nz; ++k) {
     for (std::int64_t j = 0; j < ny; ++j) {
       for (std::int64_t i = 0; i < nx; ++i) {
-        const double x = i - nx / 2.0, y = j - ny / 2.0, z = k - nz / 2.0;
+        const double x = double(i) - double(nx) / 2.0, y = double(j) - double(ny) / 2.0,
+                     z = double(k) - double(nz) / 2.0;
         const double r = std::sqrt(x * x + y * y + 0.5 * z * z);
         const double value = r < 4 ? 700 : r < 9 ? 40 : -1000;
         volume.at(i, j, k) = static_cast<float>(std::lround(value) + noise(rng));
