@@ -253,7 +253,8 @@ int main(int argc, char** argv) {
     namespace fs = std::filesystem;
     const fs::path dir = fs::temp_directory_path() / ("reduction_bench_" + std::to_string(::getpid()));
     fs::create_directories(dir);
-    const bool integral = std::all_of(volume.samples().begin(), volume.samples().end(),
+    const bool integral = volume.holds_int16() ||
+                          std::all_of(volume.samples().begin(), volume.samples().end(),
                                       [](float v) {
                                         return v == std::floor(v) && v >= -32768.0f &&
                                                v <= 32767.0f;

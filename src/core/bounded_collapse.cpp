@@ -7,7 +7,6 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
-#include <queue>
 #include <stdexcept>
 #include <vector>
 
@@ -24,9 +23,10 @@ using detail::as_point3;
 using detail::Point3;
 using Triangle = std::array<std::uint32_t, 3>;
 
-// Splits of a new triangle the surface → reference test may make before it refuses: four
-// levels cut a triangle's circumradius 16-fold, enough for triangles a few times the bound.
-constexpr int kLipschitzDepth = 4;
+// Splits of a new triangle the surface → reference test may make before it refuses: three
+// levels cut a triangle's circumradius 8-fold (a fourth doubled the tests for few more
+// collapses; docs/benchmarks.md).
+constexpr int kLipschitzDepth = 3;
 // cos 78°: a new triangle may turn at most this far from the one it replaces.
 constexpr double kMinTurnCosine = 0.2079;
 // Cells of the crossing grid at most: the grid's cell is raised until it fits.
@@ -73,10 +73,17 @@ struct Box {
   Point3 hi;
 };
 
+bool boxes_meet(const Box& a, const Box& b) {
+  for (int k = 0; k < 3; ++k) {
+    if (a.hi[k] < b.lo[k] || b.hi[k] < a.lo[k]) return false;
+  }
+  return true;
+}
+
 // Triangles in a uniform grid of cells holding lists, for a surface whose triangles change.
 class FaceGrid {
  public:
-  FaceGrid(const Point3& lo, const Point3& hi, double cell) : lo_(lo) {
+  FaceGrid(const Point3& lo, const Point3& hi, double cell, double most_cells) : lo_(lo) {
     for (int a = 0; a < 3; ++a) cell = std::max(cell, (hi[a] - lo[a]) / 1024.0);
     cell = std::max(cell, 1e-9);
     auto cells_at = [&](double c) {
@@ -84,7 +91,8 @@ class FaceGrid {
       for (int a = 0; a < 3; ++a) n *= std::floor((hi[a] - lo[a]) / c) + 1.0;
       return n;
     };
-    while (cells_at(cell) > kMaxGridCells) cell *= 1.25;
+    most_cells = std::max(most_cells, 4096.0);
+    while (cells_at(cell) > most_cells) cell *= 1.25;
     cell_ = cell;
     for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo[a]) / cell_) + 1;
     cells_.resize(static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2]);
@@ -179,6 +187,7 @@ class Collapser {
     version_.assign(nv, 0);
     held_.assign(nv, 0);
     mark_.assign(nv, 0);
+    ring_mark_.assign(nv, 0);
     alive_.assign(nf, 1);
     face_mark_.assign(nf, 0);
     visited_.assign(nf, 0);
@@ -203,22 +212,30 @@ class Collapser {
   // Collapses until `target` (0: while any is allowed).
   CollapseStats run(std::size_t target) {
     assign_reference();
-    std::priority_queue<Candidate, std::vector<Candidate>, std::greater<>> heap;
+    // Every directed edge once: on a closed oriented surface each is an edge of one triangle
+    // in its winding (the reverse is its neighbour's).
     for (std::uint32_t f = 0; f < s_.triangles.size(); ++f) {
       const Triangle& t = s_.triangles[f];
-      for (int k = 0; k < 3; ++k) {
-        push(heap, t[k], t[(k + 1) % 3]);
-        push(heap, t[(k + 1) % 3], t[k]);
-      }
+      for (int k = 0; k < 3; ++k) push(t[k], t[(k + 1) % 3]);
     }
-    while (!heap.empty() && (target == 0 || live_ > target)) {
-      const Candidate c = heap.top();
-      heap.pop();
-      if (c.from_version != version_[c.from] || c.to_version != version_[c.to]) continue;
+    std::make_heap(heap_.begin(), heap_.end(), std::greater<>{});
+    std::size_t compact_at = 2 * heap_.size();
+    while (!heap_.empty() && (target == 0 || live_ > target)) {
+      std::pop_heap(heap_.begin(), heap_.end(), std::greater<>{});
+      const Candidate c = heap_.back();
+      heap_.pop_back();
+      if (stale(c)) continue;
       if (faces_of_[c.from].empty() || held_[c.from]) continue;
       if (!collapse(c.from, c.to)) continue;
       ++stats_.collapses;
-      requeue_around(heap, c.to);
+      requeue_around(c.to);
+      if (heap_.size() > compact_at) {
+        // Stale candidates out (a collapse outdates those around it), so the queue stays
+        // within a few entries an edge.
+        std::erase_if(heap_, [&](const Candidate& e) { return stale(e); });
+        std::make_heap(heap_.begin(), heap_.end(), std::greater<>{});
+        compact_at = std::max<std::size_t>(2 * heap_.size(), 1024);
+      }
     }
     // Dead triangles out, the others in their order.
     std::size_t out = 0;
@@ -238,7 +255,8 @@ class Collapser {
       edge += std::sqrt(dot(d, d));
     }
     edge /= static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1));
-    return FaceGrid(b.min, b.max, 2.0 * edge);
+    return FaceGrid(b.min, b.max, 2.0 * edge,
+                    std::min(kMaxGridCells, 4.0 * static_cast<double>(mesh.triangles.size())));
   }
 
   Box box_of(const Triangle& t) const {
@@ -365,33 +383,51 @@ class Collapser {
 
   // Every point of triangle (a, b, c) within ε of the reference (1-Lipschitz, split in four
   // where the centroid's margin does not cover the triangle).
-  bool near_reference(const Point3& a, const Point3& b, const Point3& c, int depth) {
+  // `bound` is an upper bound of the distance from the centroid to the reference, when known
+  // (a part's: its whole's distance plus the step between the two centroids).
+  bool near_reference(const Point3& a, const Point3& b, const Point3& c, int depth,
+                      double bound = std::numeric_limits<double>::infinity()) {
     const Point3 g = {(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0,
                       (a[2] + b[2] + c[2]) / 3.0};
     double radius2 = 0.0;
     for (const Point3* p : {&a, &b, &c}) radius2 = std::max(radius2, dot(sub(*p, g), sub(*p, g)));
-    // Some reference triangle within ε − radius of the centroid settles it; the search for one
-    // is bounded by that radius, so most tests look at a few cells.
-    const double margin = eps_ - std::sqrt(radius2);
-    if (margin > 0.0 &&
-        ref_grid_.nearest_squared(g, ref_stamp_, next_query(), margin) < margin * margin) {
-      return true;
-    }
-    if (ref_grid_.nearest_squared(g, ref_stamp_, next_query(), eps_) >= eps2_) return false;
-    if (depth == kLipschitzDepth) return false;
+    const double radius = std::sqrt(radius2);
+    if (bound + radius <= eps_) return true;
+    // One search up to ε, stopped at the first reference triangle within ε − radius (which
+    // settles it; most tests look at a few cells); otherwise it gives the exact distance.
+    const double margin = eps_ - radius;
+    const double d2 = ref_grid_.nearest_squared(g, ref_stamp_, next_query(), eps_, nullptr,
+                                                margin > 0.0 ? margin * margin : 0.0);
+    if (margin > 0.0 && d2 < margin * margin) return true;
+    if (d2 >= eps2_ || depth == kLipschitzDepth) return false;
+    const double d = std::sqrt(d2);
     const Point3 ab = mid(a, b);
     const Point3 bc = mid(b, c);
     const Point3 ca = mid(c, a);
-    return near_reference(a, ab, ca, depth + 1) && near_reference(ab, b, bc, depth + 1) &&
-           near_reference(ca, bc, c, depth + 1) && near_reference(ab, bc, ca, depth + 1);
+    auto part = [&](const Point3& p, const Point3& q, const Point3& r) {
+      const Point3 h = {(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0,
+                        (p[2] + q[2] + r[2]) / 3.0};
+      return near_reference(p, q, r, depth + 1, d + std::sqrt(dot(sub(h, g), sub(h, g))));
+    };
+    return part(a, ab, ca) && part(ab, b, bc) && part(ca, bc, c) && part(ab, bc, ca);
   }
 
-  void push(std::priority_queue<Candidate, std::vector<Candidate>, std::greater<>>& heap,
-            std::uint32_t from, std::uint32_t to) {
+  void push_heap(std::uint32_t from, std::uint32_t to) {
+    const std::size_t before = heap_.size();
+    push(from, to);
+    if (heap_.size() > before) std::push_heap(heap_.begin(), heap_.end(), std::greater<>{});
+  }
+
+  bool stale(const Candidate& c) const {
+    return c.from_version != version_[c.from] || c.to_version != version_[c.to];
+  }
+
+  // Appends the candidate u → v (a heap only once run() has made it one).
+  void push(std::uint32_t from, std::uint32_t to) {
     if (held_[from]) return;
     Quadric q = quadric_[from];
     q += quadric_[to];
-    heap.push({std::max(q.at(pos_[to]), 0.0), from, to, version_[from], version_[to]});
+    heap_.push_back({std::max(q.at(pos_[to]), 0.0), from, to, version_[from], version_[to]});
   }
 
   // Neighbours of v (each once; marks them in mark_ with a new stamp).
@@ -408,18 +444,21 @@ class Collapser {
     }
   }
 
-  void requeue_around(std::priority_queue<Candidate, std::vector<Candidate>, std::greater<>>& heap,
-                      std::uint32_t v) {
-    std::vector<std::uint32_t> ring;
+  void requeue_around(std::uint32_t v) {
+    std::vector<std::uint32_t>& ring = ring_;
     neighbours(v, ring);
     ring.push_back(v);
     for (auto w : ring) ++version_[w];
-    std::vector<std::uint32_t> around;
+    std::vector<std::uint32_t>& around = around_;
+    // Each edge once: an edge between two ring vertices from its smaller end.
+    ++ring_stamp_;
+    for (auto w : ring) ring_mark_[w] = ring_stamp_;
     for (auto w : ring) {
       neighbours(w, around);
       for (auto x : around) {
-        push(heap, w, x);
-        push(heap, x, w);
+        if (ring_mark_[x] == ring_stamp_ && x < w) continue;
+        push_heap(w, x);
+        push_heap(x, w);
       }
     }
   }
@@ -504,10 +543,12 @@ class Collapser {
         crossing = triangles_intersect(s_, f, changed_[j]);
       }
       ++visit_stamp_;
-      grid_.visit(box_of(new_tri_[k]), [&](std::uint32_t g) {
+      const Box new_box = box_of(new_tri_[k]);
+      grid_.visit(new_box, [&](std::uint32_t g) {
         if (crossing || !alive_[g] || face_mark_[g] == face_stamp_) return;
         if (visited_[g] == visit_stamp_) return;
         visited_[g] = visit_stamp_;
+        if (!boxes_meet(new_box, box_of(s_.triangles[g]))) return;
         crossing = triangles_intersect(s_, f, g);
       });
     }
@@ -580,6 +621,8 @@ class Collapser {
   std::vector<std::uint8_t> held_;
   std::vector<std::uint32_t> mark_;
   std::uint32_t mark_stamp_ = 0;
+  std::vector<std::uint32_t> ring_mark_;
+  std::uint32_t ring_stamp_ = 0;
   std::vector<std::uint8_t> alive_;
   std::vector<std::uint32_t> face_mark_;
   std::uint32_t face_stamp_ = 0;
@@ -590,11 +633,14 @@ class Collapser {
   std::uint32_t query_ = 0;
   std::size_t live_ = 0;
   CollapseStats stats_;
+  std::vector<Candidate> heap_;  // candidates, smallest cost on top (std::greater)
   // Scratch of collapse().
   std::vector<std::uint32_t> changed_;
   std::vector<Triangle> new_tri_;
   std::vector<Triangle> old_tri_;
   std::vector<std::uint32_t> ring_u_;
+  std::vector<std::uint32_t> ring_;
+  std::vector<std::uint32_t> around_;
   std::vector<std::uint32_t> ring_v_;
   std::vector<std::uint32_t> candidates_;
   std::vector<std::pair<std::uint32_t, Patch>> reassigned_;

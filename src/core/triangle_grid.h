@@ -2,8 +2,8 @@
 // queries (mesh_distance.h, bounded_collapse.h).
 //
 // Cells about two mean edge lengths wide (about two triangles a cell on a surface), at most
-// 1,024 along an axis so a stray far triangle cannot blow the grid up; CSR storage, 4 bytes a
-// bucket entry and 4 a cell. A query searches shells of cells outward and stops once no
+// 1,024 along an axis so a stray far triangle cannot blow the grid up, and at most four cells
+// a triangle over the bounding box; CSR storage, 4 bytes a bucket entry and 4 a cell. A query searches shells of cells outward and stops once no
 // unvisited cell can be nearer than the best triangle found (or than a cap).
 #pragma once
 
@@ -21,6 +21,8 @@ namespace typemerge::core::detail {
 
 using Point3 = std::array<double, 3>;
 inline Point3 as_point3(const std::array<float, 3>& p) { return {p[0], p[1], p[2]}; }
+
+inline constexpr double kCellsPerTriangle = 4.0;
 
 // Triangles of a mesh bucketed by the grid cells their bounding boxes overlap (CSR). The mesh
 // must outlive the grid and not change; it must have at least one triangle.
@@ -53,27 +55,40 @@ class TriangleGrid {
       const double extent = hi[a] - lo_[a];
       cell_ = std::max(cell_, extent / 1024.0);
     }
+    // And at most kCellsPerTriangle cells a triangle over the bounding box: a surface fills
+    // few of its box's cells, and the dense cell table (4 bytes a cell) would otherwise
+    // outweigh the mesh (36 M cells, 146 MB, for the abdomen's 2.2 M-triangle skin).
+    const double most_cells =
+        std::max(kCellsPerTriangle * static_cast<double>(mesh.triangles.size()), 64.0);
+    auto cells_at = [&](double c) {
+      double n = 1.0;
+      for (int a = 0; a < 3; ++a) n *= std::floor((hi[a] - lo_[a]) / c) + 1.0;
+      return n;
+    };
+    while (cells_at(cell_) > most_cells) cell_ *= 1.25;
     for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo_[a]) / cell_) + 1;
     const std::size_t cells = static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2];
 
-    // Count, prefix sum, fill.
     start_.assign(cells + 1, 0);
+    // Count, prefix sum, fill; the fill advances start_[c + 1] from the beginning of cell c to
+    // its end, i.e. to the beginning of cell c + 1, so no second table is needed.
     for_each_cell_of_triangles([&](std::size_t cell, std::uint32_t) { ++start_[cell + 1]; });
     for (std::size_t c = 0; c < cells; ++c) start_[c + 1] += start_[c];
     entries_.resize(start_[cells]);
-    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (std::size_t c = cells; c > 0; --c) start_[c] = start_[c - 1];  // start_[c + 1]: c's start
     for_each_cell_of_triangles(
-        [&](std::size_t cell, std::uint32_t t) { entries_[fill[cell]++] = t; });
+        [&](std::size_t cell, std::uint32_t t) { entries_[start_[cell + 1]++] = t; });
   }
 
   // Squared distance from p to the nearest triangle; `stamp` (one entry per triangle, owned by
   // the calling thread) avoids testing a triangle twice per query.
   // With `cap` finite, the search stops once no triangle nearer than cap is left, returning
   // at most cap². With `which`, the nearest triangle's index is stored there (unchanged when
-  // none is nearer than cap).
+  // none is nearer than cap). With `enough` > 0, the search stops at the first triangle whose
+  // squared distance is below it (then the result is that, not necessarily the nearest).
   double nearest_squared(const Point3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,
                          double cap = std::numeric_limits<double>::infinity(),
-                         std::uint32_t* which = nullptr) const {
+                         std::uint32_t* which = nullptr, double enough = 0.0) const {
     std::array<int, 3> c{};
     for (int a = 0; a < 3; ++a) {
       c[a] = std::clamp(static_cast<int>(std::floor((p[a] - lo_[a]) / cell_)), 0, dims_[a] - 1);
@@ -81,18 +96,33 @@ class TriangleGrid {
     double best = cap * cap;
     const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
     for (int r = 0; r <= max_ring; ++r) {
-      for (int z = c[2] - r; z <= c[2] + r; ++z) {
-        if (z < 0 || z >= dims_[2]) continue;
-        for (int y = c[1] - r; y <= c[1] + r; ++y) {
-          if (y < 0 || y >= dims_[1]) continue;
+      // The shell of cells at Chebyshev distance r from c, clipped to the grid.
+      const int z0 = std::max(c[2] - r, 0), z1 = std::min(c[2] + r, dims_[2] - 1);
+      const int y0 = std::max(c[1] - r, 0), y1 = std::min(c[1] + r, dims_[1] - 1);
+      const int x0 = std::max(c[0] - r, 0), x1 = std::min(c[0] + r, dims_[0] - 1);
+      for (int z = z0; z <= z1; ++z) {
+        for (int y = y0; y <= y1; ++y) {
           const bool inner = std::abs(z - c[2]) < r && std::abs(y - c[1]) < r;
-          for (int x = c[0] - r; x <= c[0] + r; x += (inner ? 2 * r : 1)) {
-            if (x >= 0 && x < dims_[0]) visit(x, y, z, p, stamp, query, best, which);
-            if (r == 0) break;
+          auto cell = [&](int x) {
+            visit(x, y, z, p, stamp, query, best, which);
+            return best < enough;
+          };
+          if (!inner) {
+            for (int x = x0; x <= x1; ++x) {
+              if (cell(x)) return best;
+            }
+          } else {
+            if (c[0] - r >= 0 && cell(c[0] - r)) return best;
+            if (r > 0 && c[0] + r < dims_[0] && cell(c[0] + r)) return best;
           }
         }
       }
-      // Every cell outside the block [c − r, c + r] is at least `gap` away from p.
+      // Every cell outside the block [c − r, c + r] is at least `gap` away from p; once the
+      // block holds the whole grid there is none.
+      if (z0 == 0 && y0 == 0 && x0 == 0 && z1 == dims_[2] - 1 && y1 == dims_[1] - 1 &&
+          x1 == dims_[0] - 1) {
+        break;
+      }
       double gap = std::numeric_limits<double>::infinity();
       for (int a = 0; a < 3; ++a) {
         gap = std::min(gap, p[a] - (lo_[a] + (c[a] - r) * cell_));
