@@ -262,7 +262,8 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
   command->add_option("--report", options.report, "Write a JSON report of the run");
   command->add_option("--max-memory", options.max_memory,
                       "Memory bound, e.g. 8G (default: 3/4 of the physical memory): a series "
-                      "whose conversion would need more (about 6 bytes a voxel + 211 MiB for one surface, "
+                      "whose conversion would need more (about 4 bytes a voxel, 6 when its values "
+                      "need floats, + 211 MiB for one surface, "
                       "more per surface, window, --reduce-to and --hollow) is refused "
                       "before loading, and the process's address space is limited to it");
   CLI::App* surface = command->add_option_group("Surface");
