@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""VTK's usual reduction routes on the same volume, for reduction_bench: flying edges, then
-vtkQuadricDecimation, and vtkDecimatePro with the topology preserved, to given counts.
+"""VTK's usual reduction routes on the same volume, for reduction_bench: flying edges and
+vtkCleanPolyData, then vtkQuadricDecimation, and vtkDecimatePro with the topology preserved,
+to given counts.
 
 usage: vtk_reduce.py VOLUME.nrrd OUTDIR --iso 300 --targets 210000,84000
 Writes OUTDIR/fe.stl (flying edges, index space) and OUTDIR/{quadric,pro}-N.stl; prints one
@@ -55,7 +56,13 @@ def main():
         reduction = max(0.0, min(1.0, 1.0 - target / count))
         for name, make in (("quadric", vtk.vtkQuadricDecimation), ("pro", vtk.vtkDecimatePro)):
             start = time.perf_counter()
-            source = flying_edges()
+            # Flying edges repeats some points (414,685 for 409,485 distinct on the abdomen at
+            # 300 HU); vtkQuadricDecimation stops almost at once on such a surface (825,490 of
+            # 826,202 triangles left for a 75 % reduction), so the points are merged first.
+            clean = vtk.vtkCleanPolyData()
+            clean.SetInputData(flying_edges())
+            clean.Update()
+            source = clean.GetOutput()
             decimate = make()
             decimate.SetInputData(source)
             decimate.SetTargetReduction(reduction)
