@@ -34,9 +34,6 @@ constexpr double kMaxGridCells = 1 << 20;
 
 Point3 sub(const Point3& a, const Point3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 double dot(const Point3& a, const Point3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
-Point3 cross(const Point3& a, const Point3& b) {
-  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-}
 Point3 mid(const Point3& a, const Point3& b) {
   return {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
 }
@@ -196,7 +193,7 @@ class Collapser {
     live_ = nf;
     for (std::uint32_t f = 0; f < nf; ++f) {
       const Triangle& t = s_.triangles[f];
-      const Point3 n = cross(sub(pos_[t[1]], pos_[t[0]]), sub(pos_[t[2]], pos_[t[0]]));
+      const Point3 n = triangle_area_vector(s_, t);
       const double len = std::sqrt(dot(n, n));
       if (len > 0) {
         const Point3 unit = {n[0] / len, n[1] / len, n[2] / len};
@@ -510,8 +507,8 @@ class Collapser {
       const ExtremeAngles shape = extreme_angles_of(pos_[t[0]], pos_[t[1]], pos_[t[2]]);
       if (shape.above_170 != 0 || shape.below_1 != 0) return refuse(stats_.refused_shape);
       const Triangle& old = s_.triangles[f];
-      const Point3 n_new = cross(sub(pos_[t[1]], pos_[t[0]]), sub(pos_[t[2]], pos_[t[0]]));
-      const Point3 n_old = cross(sub(pos_[old[1]], pos_[old[0]]), sub(pos_[old[2]], pos_[old[0]]));
+      const Point3 n_new = triangle_area_vector(s_, t);
+      const Point3 n_old = triangle_area_vector(s_, old);
       if (dot(n_new, n_old) < kMinTurnCosine * std::sqrt(dot(n_new, n_new) * dot(n_old, n_old))) {
         return refuse(stats_.refused_shape);
       }
@@ -658,24 +655,5 @@ CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& r
   return collapser.run(options.target);
 }
 
-void drop_unused_vertices(TriangleMesh& mesh) {
-  constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::uint32_t> renumber(mesh.positions.size(), kUnused);
-  std::vector<std::array<float, 3>> positions;
-  std::vector<std::array<float, 3>> normals;
-  const bool with_normals = mesh.normals.size() == mesh.positions.size();
-  for (auto& t : mesh.triangles) {
-    for (auto& v : t) {
-      if (renumber[v] == kUnused) {
-        renumber[v] = static_cast<std::uint32_t>(positions.size());
-        positions.push_back(mesh.positions[v]);
-        if (with_normals) normals.push_back(mesh.normals[v]);
-      }
-      v = renumber[v];
-    }
-  }
-  mesh.positions = std::move(positions);
-  mesh.normals = std::move(normals);
-}
 
 }  // namespace typemerge::core

@@ -56,14 +56,11 @@ struct CollapseStats {
 };
 
 // Collapses `surface` in place (triangles only: positions are kept, unused ones stay unused;
-// compact afterwards) until `options.target` or until no allowed collapse is left.
+// remove_unreferenced_vertices afterwards) until `options.target` or until no allowed collapse is left.
 // Preconditions, the caller's: `surface` is a closed, oriented 2-manifold without crossing
 // triangles, in the same units and frame as `reference`, and every point of each is within
 // options.bound of the other. Throws std::invalid_argument for a bound not finite and > 0.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options);
-
-// The vertices some triangle uses, renumbered in first-use order; triangles keep their order.
-void drop_unused_vertices(TriangleMesh& mesh);
 
 }  // namespace typemerge::core

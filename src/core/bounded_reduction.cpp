@@ -20,13 +20,15 @@ struct Try {
   MergeStats stats;
 };
 
-}  // namespace
-
-CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
-                                TriangleMesh& merged, std::size_t target, double bound_mm) {
-  const IndexToPatient& geometry = volume.geometry();
+// Marching cubes' surface of the volume in patient mm: what the collapses are judged against.
+TriangleMesh reference_surface(const Volume& volume, float iso, const ExtractOptions& extract) {
   TriangleMesh reference = extract_isosurface(volume, iso, extract);
-  to_patient(reference, geometry);
+  to_patient(reference, volume.geometry());
+  return reference;
+}
+
+CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatient& geometry,
+                               TriangleMesh& merged, std::size_t target, double bound_mm) {
   // The collapses judge distances, shapes and crossings in millimetres, on the floats
   // to_patient makes (the ones written); the triangles they leave are then taken back to the
   // index-space positions, undoing to_patient's winding flip.
@@ -35,13 +37,20 @@ CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOp
   work.triangles = merged.triangles;
   to_patient(work, geometry);
   const CollapseStats stats = collapse_within_bound(work, reference, {bound_mm, target});
-  const bool flipped = geometry.determinant() < 0;
-  for (auto& t : work.triangles) {
-    if (flipped) std::swap(t[1], t[2]);
+  if (geometry.determinant() < 0) {
+    for (auto& t : work.triangles) std::swap(t[1], t[2]);
   }
   merged.triangles = std::move(work.triangles);
-  drop_unused_vertices(merged);
+  remove_unreferenced_vertices(merged);
   return stats;
+}
+
+}  // namespace
+
+CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
+                                TriangleMesh& merged, std::size_t target, double bound_mm) {
+  return collapse_against(reference_surface(volume, iso, extract), volume.geometry(), merged,
+                          target, bound_mm);
 }
 
 ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
@@ -76,9 +85,14 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
     // larger merge leaves the collapses fewer, better-shaped triangles to work on, so each
     // bound reaches fewer triangles this way than by collapses from a finer merge); if that
     // cannot either, the same within the cap.
+    // Marching cubes' surface once for both bounds (extracted after the first merge, so the
+    // two are never held at once).
+    std::optional<TriangleMesh> reference;
     for (const double bound : {0.5 * cap_mm, cap_mm}) {
       Try start = bound == cap_mm ? std::move(at_cap) : run(bound);
-      result.collapse = collapse_to_count(volume, iso, extract, start.mesh, target, bound);
+      if (!reference) reference = reference_surface(volume, iso, extract);
+      result.collapse =
+          collapse_against(*reference, volume.geometry(), start.mesh, target, bound);
       if (start.mesh.triangles.size() <= target || bound == cap_mm) return finish(std::move(start));
     }
   }

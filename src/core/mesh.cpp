@@ -4,7 +4,9 @@
 #include <cassert>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <utility>
+#include <vector>
 
 namespace typemerge::core {
 
@@ -61,6 +63,33 @@ std::array<double, 3> facet_normal(const TriangleMesh& mesh,
     for (double& x : n) x /= length;
   }
   return n;
+}
+
+std::size_t remove_unreferenced_vertices(TriangleMesh& mesh) {
+  const std::size_t n = mesh.positions.size();
+  constexpr std::uint32_t kUnused = UINT32_MAX;
+  std::vector<std::uint32_t> new_index(n, kUnused);
+  for (const auto& t : mesh.triangles) {
+    for (const std::uint32_t v : t) {
+      assert(v < n);
+      new_index[v] = 0;
+    }
+  }
+  const bool has_normals = mesh.normals.size() == n;
+  std::uint32_t next = 0;
+  for (std::size_t v = 0; v < n; ++v) {
+    if (new_index[v] == kUnused) continue;
+    new_index[v] = next;
+    mesh.positions[next] = mesh.positions[v];
+    if (has_normals) mesh.normals[next] = mesh.normals[v];
+    ++next;
+  }
+  mesh.positions.resize(next);
+  if (has_normals) mesh.normals.resize(next);
+  for (auto& t : mesh.triangles) {
+    for (std::uint32_t& v : t) v = new_index[v];
+  }
+  return n - next;
 }
 
 BoundingBox bounding_box(const TriangleMesh& mesh) {

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -34,6 +35,11 @@ void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry);
 // facet normal and degeneracy test of the project is computed.
 std::array<double, 3> triangle_area_vector(const TriangleMesh& mesh,
                                            const std::array<std::uint32_t, 3>& triangle);
+
+// Removes vertices no triangle uses (and their normals), renumbering the triangles and keeping
+// the others in their order; returns how many were removed. Precondition: every index <
+// mesh.positions.size().
+std::size_t remove_unreferenced_vertices(TriangleMesh& mesh);
 
 // Axis-aligned bounds of the vertex positions; min > max (empty) for a mesh without vertices.
 struct BoundingBox {

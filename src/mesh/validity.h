@@ -51,8 +51,7 @@ struct RepairReport {
 // Precondition: every index < mesh.positions.size().
 RepairReport repair_mesh(core::TriangleMesh& mesh);
 
-// Removes vertices no triangle uses (and their normals), renumbering the triangles; returns
-// how many were removed. Precondition: every index < mesh.positions.size().
-std::size_t remove_unreferenced_vertices(core::TriangleMesh& mesh);
+// core::remove_unreferenced_vertices (core/mesh.h), where the core's reduction uses it too.
+using core::remove_unreferenced_vertices;
 
 }  // namespace typemerge::mesh

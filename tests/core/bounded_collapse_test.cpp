@@ -90,7 +90,7 @@ TEST(BoundedCollapse, ReachesTheTargetKeepingEveryGuarantee) {
     const std::size_t target = s.mc.triangles.size() / 10;
     ASSERT_GT(s.merged.triangles.size(), target);
     const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {1.5, target});
-    drop_unused_vertices(collapsed);
+    remove_unreferenced_vertices(collapsed);
     EXPECT_GT(stats.collapses, 0u);
     EXPECT_LE(collapsed.triangles.size(), target);
     EXPECT_GE(collapsed.triangles.size() + 2, target);
@@ -104,7 +104,7 @@ TEST(BoundedCollapse, StopsWhereTheBoundStopsIt) {
   const Surfaces s = surfaces_of(volume, 0.0f, 0.3);
   TriangleMesh collapsed = s.merged;
   const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {0.3, 4});
-  drop_unused_vertices(collapsed);
+  remove_unreferenced_vertices(collapsed);
   EXPECT_GT(stats.collapses, 0u);
   EXPECT_GT(collapsed.triangles.size(), 4u);  // a small bound cannot reach 4 triangles
   EXPECT_GT(stats.refused_distance, 0u);
@@ -129,7 +129,7 @@ TEST(BoundedCollapse, CloseLayersDoNotCollapseIntoEachOther) {
   const Surfaces s = surfaces_of(volume, 0.0f, 0.5);
   TriangleMesh collapsed = s.merged;
   const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {3.0, 0});
-  drop_unused_vertices(collapsed);
+  remove_unreferenced_vertices(collapsed);
   EXPECT_GT(stats.collapses, 0u);
   EXPECT_GT(stats.refused_crossing, 0u);
   expect_guarantees(s.mc, s.merged, collapsed, 3.0);
@@ -141,21 +141,6 @@ TEST(BoundedCollapse, RejectsABadBound) {
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {0.0, 0}), std::invalid_argument);
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {NAN, 0}), std::invalid_argument);
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {INFINITY, 0}), std::invalid_argument);
-}
-
-TEST(BoundedCollapse, DropUnusedVerticesRenumbersInFirstUseOrder) {
-  TriangleMesh mesh;
-  mesh.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}, {3, 0, 0}, {4, 0, 0}};
-  mesh.normals = {{0, 0, 1}, {0, 1, 0}, {1, 0, 0}, {0, 0, -1}, {0, -1, 0}};
-  mesh.triangles = {{4, 2, 0}, {0, 2, 4}};
-  drop_unused_vertices(mesh);
-  ASSERT_EQ(mesh.positions.size(), 3u);
-  EXPECT_EQ(mesh.positions[0][0], 4.0f);
-  EXPECT_EQ(mesh.positions[1][0], 2.0f);
-  EXPECT_EQ(mesh.positions[2][0], 0.0f);
-  EXPECT_EQ(mesh.normals[0][1], -1.0f);
-  EXPECT_EQ(mesh.triangles[0], (std::array<std::uint32_t, 3>{0, 1, 2}));
-  EXPECT_EQ(mesh.triangles[1], (std::array<std::uint32_t, 3>{2, 1, 0}));
 }
 
 }  // namespace
