@@ -312,6 +312,18 @@ int main(int argc, char** argv) {
               f.blocks_merged[4], f.rejected_topology, f.rejected_facing, f.rejected_flatness,
               f.rejected_outline, f.rejected_separation, f.blocks_split, f.blocks_demoted,
               f.face_vertices_removed, f.face_vertices_restored, f.triangulation_passes);
+          // The ceiling of a pre-test that rejects boxes before their components are built:
+          // the share of step 1's test work spent on boxes that then failed.
+          auto share = [](std::size_t part, std::size_t whole) {
+            return whole == 0 ? 0.0 : 100.0 * double(part) / double(whole);
+          };
+          std::printf(
+              "    step 1 work on boxes that failed (a pre-test's ceiling): %zu of %zu "
+              "triangles tested (%.1f%%), %zu of %zu parts' loop vertices (%.1f%%)\n",
+              f.tested_triangles_failed, f.tested_triangles,
+              share(f.tested_triangles_failed, f.tested_triangles), f.tested_loop_vertices_failed,
+              f.tested_loop_vertices,
+              share(f.tested_loop_vertices_failed, f.tested_loop_vertices));
         }
       }
     }

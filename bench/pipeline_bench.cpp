@@ -5,10 +5,12 @@
 //                  [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]
 //                  [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]
 //                  [--typemerge build/src/app/typemerge] [--memory-only]
+//                  [--convert-extra "--denoise gaussian"]
 //
 // --memory-only prints only the memory figure of `typemerge convert` (tm) per surface and
 // thread count: its peak RSS as its own process, less 24 bytes a triangle of its output, over
-// the series' voxels (print_memory_figures).
+// the series' voxels (print_memory_figures); --convert-extra adds options to that convert
+// (a filter, --voxel-size, --hollow: docs/benchmarks.md, "filters in slabs").
 //
 // --as-dicom writes the synthetic volume as a CT series (tools/ct_writer, explicit little
 // endian, 12-bit stored values) into --out-dir/pipeline_bench_dicom_NXxNYxNZ and measures it
@@ -501,7 +503,7 @@ StageFigures run_convert_once(const RunSettings& settings, const std::string& al
 // ourselves starts at our own peak (exec records the old address space's peak as the child's),
 // while time's child is forked from a small process. -1 if it could not run.
 long convert_process_peak_kib(const std::string& typemerge, const RunSettings& settings,
-                              const std::string& algorithm) {
+                              const std::string& algorithm, const std::string& extra = "") {
   const fs::path out =
       settings.out_dir / ("pipeline_bench_process_" + settings.surface.name + ".stl");
   const fs::path figure = settings.out_dir / "pipeline_bench_process_peak.txt";
@@ -509,8 +511,9 @@ long convert_process_peak_kib(const std::string& typemerge, const RunSettings& s
                         "' convert '" + settings.input.series_dir + "'";
   command += settings.surface.preset ? " --preset " + settings.surface.name
                                      : " --iso " + std::to_string(settings.surface.lo);
-  command += " --algorithm " + algorithm + " --threads " + std::to_string(settings.threads) +
-             " -o '" + out.string() + "' > /dev/null 2>&1";
+  command += " --algorithm " + algorithm + " --threads " + std::to_string(settings.threads);
+  if (!extra.empty()) command += " " + extra;
+  command += " -o '" + out.string() + "' > /dev/null 2>&1";
   if (std::system(command.c_str()) != 0) return -1;
   std::ifstream in(figure);
   long kib = -1;
@@ -524,7 +527,7 @@ long convert_process_peak_kib(const std::string& typemerge, const RunSettings& s
 // its result. Needs --series (or --as-dicom).
 int print_memory_figures(const std::string& typemerge, const Input& input,
                          const std::vector<Surface>& surfaces, const std::string& thread_list,
-                         const fs::path& out_dir) {
+                         const fs::path& out_dir, const std::string& convert_extra) {
   if (input.series_dir.empty()) {
     std::fprintf(stderr, "--memory-only needs --series or --as-dicom\n");
     return 2;
@@ -540,7 +543,7 @@ int print_memory_figures(const std::string& typemerge, const Input& input,
     for (const std::string& threads : split(thread_list)) {
       const RunSettings settings{input, surface, static_cast<unsigned>(std::stoi(threads)),
                                  out_dir};
-      const long peak_kib = convert_process_peak_kib(typemerge, settings, "tm");
+      const long peak_kib = convert_process_peak_kib(typemerge, settings, "tm", convert_extra);
       const fs::path stl = out_dir / ("pipeline_bench_process_" + surface.name + ".stl");
       if (peak_kib < 0 || !fs::exists(stl)) {
         std::printf("  %s: could not run %s under /usr/bin/time\n", surface.name.c_str(),
@@ -550,9 +553,10 @@ int print_memory_figures(const std::string& typemerge, const Input& input,
       const double triangles = double((fs::file_size(stl) - 84) / 50);  // binary STL
       const double peak = double(peak_kib) * 1024.0;
       const double mesh_bytes = 24.0 * triangles;
-      std::printf("  convert --preset/--iso %s --threads %s: peak RSS %.1f MiB, %.0f triangles "
+      std::printf("  convert --preset/--iso %s --threads %s%s%s: peak RSS %.1f MiB, %.0f triangles "
                   "(~%.1f MiB): %.2f bytes a voxel besides the mesh\n",
-                  surface.name.c_str(), threads.c_str(), peak / (1 << 20), triangles,
+                  surface.name.c_str(), threads.c_str(), convert_extra.empty() ? "" : " ",
+                  convert_extra.c_str(), peak / (1 << 20), triangles,
                   mesh_bytes / (1 << 20), (peak - mesh_bytes) / voxels);
       std::fflush(stdout);
     }
@@ -599,7 +603,8 @@ int usage() {
                "       [--preset bone,skin | --iso 300,-500] [--threads 1,2] [--repeat 3]\n"
                "       [--out-dir /tmp] [--write-nrrd FILE] [--vtk] [--no-convert]\n"
                "       [--vtk-python /usr/bin/python3] [--vtk-script bench/vtk_pipeline.py]\n"
-               "       [--typemerge build/src/app/typemerge] [--memory-only]\n");
+               "       [--typemerge build/src/app/typemerge] [--memory-only]\n"
+               "       [--convert-extra \"--denoise gaussian\"]\n");
   return 2;
 }
 
@@ -610,7 +615,8 @@ int run(int argc, char** argv) {
       typemerge = (fs::read_symlink("/proc/self/exe").parent_path().parent_path() / "src" /
                    "app" / "typemerge")
                       .string(),
-      vtk_script = std::string(TYPEMERGE_BENCH_SOURCE_DIR) + "/vtk_pipeline.py";
+      vtk_script = std::string(TYPEMERGE_BENCH_SOURCE_DIR) + "/vtk_pipeline.py",
+      convert_extra;
   int repeat = 3;
   bool vtk = false, convert = true, as_dicom = false, memory_only = false;
   for (int a = 1; a < argc; ++a) {
@@ -657,6 +663,8 @@ int run(int argc, char** argv) {
       vtk_python = value;
     else if (key == "--vtk-script")
       vtk_script = value;
+    else if (key == "--convert-extra")
+      convert_extra = value;
     else if (key == "--typemerge")
       typemerge = value;
     else
@@ -694,7 +702,9 @@ int run(int argc, char** argv) {
   }
 
   fs::create_directories(out_dir);
-  if (memory_only) return print_memory_figures(typemerge, input, surfaces, thread_list, out_dir);
+  if (memory_only) {
+    return print_memory_figures(typemerge, input, surfaces, thread_list, out_dir, convert_extra);
+  }
   g_peak_resets = reset_peak_rss();
   const std::string name = input.series_dir.empty()
                                ? "synthetic " + std::to_string(input.nx) + "x" +

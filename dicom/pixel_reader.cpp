@@ -10,8 +10,10 @@
 #include <dcmtk/dcmjpeg/djdecode.h>
 #include <dcmtk/dcmjpls/djdecode.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 
 #include "dicom/header_reader.h"
@@ -69,6 +71,15 @@ struct HuMapping {
     if (has_padding && stored >= padding_low && stored <= padding_high) return kAirHu;
     return static_cast<float>(stored * slope + intercept);
   }
+  // Whether hu() is stored · slope + intercept in integers: both are integers small enough
+  // that every stored value (|stored| < 2³¹) maps exactly in 64-bit integers, as it does in
+  // double, and the padding's air is an integer.
+  bool integral() const {
+    constexpr double kLimit = 1 << 20;
+    return slope == std::trunc(slope) && intercept == std::trunc(intercept) &&
+           std::fabs(slope) <= kLimit && std::fabs(intercept) <= kLimit &&
+           kAirHu == std::trunc(kAirHu);
+  }
 };
 
 // Writes value(p) for the frame's n pixels into the target's floats or int16 samples. An
@@ -87,6 +98,34 @@ void write_frame(const FrameTarget& target, std::size_t n, Value&& value) {
     target.hu16[p] = static_cast<std::int16_t>(fits ? v : 0.0f);
   }
   if (!fits) throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
+}
+
+// write_frame for stored values `stored(p)` under an integral mapping into int16 samples, in
+// integers: the same values as the float route (each an integer there too), without its
+// double arithmetic and per-sample tests (that route was about 10 % of a bone conversion of
+// the abdomen on one thread, perf). Out of int16 throws NotInt16, as write_frame does.
+template <typename Stored>
+void write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapping& mapping,
+                          Stored&& stored) {
+  const auto slope = static_cast<std::int64_t>(mapping.slope);
+  const auto intercept = static_cast<std::int64_t>(mapping.intercept);
+  const auto air = static_cast<std::int64_t>(kAirHu);
+  std::int64_t lowest = std::numeric_limits<std::int64_t>::max();
+  std::int64_t highest = std::numeric_limits<std::int64_t>::min();
+  for (std::size_t p = 0; p < n; ++p) {
+    const std::int32_t s = stored(p);
+    const std::int64_t v =
+        mapping.has_padding && s >= mapping.padding_low && s <= mapping.padding_high
+            ? air
+            : s * slope + intercept;
+    lowest = std::min(lowest, v);
+    highest = std::max(highest, v);
+    target.hu16[p] = static_cast<std::int16_t>(v);
+  }
+  if (lowest < std::numeric_limits<std::int16_t>::min() ||
+      highest > std::numeric_limits<std::int16_t>::max()) {
+    throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
+  }
 }
 
 [[noreturn]] void fail(const SliceHeader& header, const std::string& reason) {
@@ -229,6 +268,11 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
     for (const FrameTarget& target : targets) {
       const HuMapping mapping(*target.header);
       const Uint16* frame = words + frame_pixels * target.header->frame;
+      if (target.hu16 != nullptr && mapping.integral()) {
+        write_frame_integral(target, frame_pixels, mapping,
+                             [&](std::size_t p) { return layout.value(frame[p]); });
+        continue;
+      }
       write_frame(target, frame_pixels,
                   [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
     }
@@ -238,6 +282,11 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
     for (const FrameTarget& target : targets) {
       const HuMapping mapping(*target.header);
       const Uint8* frame = bytes + frame_pixels * target.header->frame;
+      if (target.hu16 != nullptr && mapping.integral()) {
+        write_frame_integral(target, frame_pixels, mapping,
+                             [&](std::size_t p) { return layout.value(frame[p]); });
+        continue;
+      }
       write_frame(target, frame_pixels,
                   [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
     }

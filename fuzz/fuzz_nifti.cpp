@@ -38,12 +38,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const nifti::NiftiImage image = nifti::decode_nifti(bytes, options);
     const auto& grid = image.volume.size();
     if (grid.nx < 1 || grid.ny < 1 || grid.nz < 1 ||
-        image.volume.samples().size() != static_cast<std::size_t>(grid.voxels())) {
+        image.volume.sample_bytes() != static_cast<std::size_t>(grid.voxels()) *
+                                            (image.volume.holds_int16() ? 2 : 4)) {
       violated("samples do not match the size");
     }
-    for (float v : image.volume.samples()) {
-      if (!std::isfinite(v)) violated("a non-finite sample");
-    }
+    image.volume.visit([&](const auto* samples) {  // float or int16 storage
+      for (std::int64_t v = 0; v < grid.voxels(); ++v) {
+        if (!std::isfinite(static_cast<float>(samples[v]))) violated("a non-finite sample");
+      }
+    });
     const double det = image.volume.geometry().determinant();
     if (!std::isfinite(det) || det == 0) violated("a singular or non-finite geometry");
   } catch (const nifti::ReadError&) {

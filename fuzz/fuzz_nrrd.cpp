@@ -34,12 +34,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (image.layers.size() != image.header.layers) violated("layer count");
     for (const core::Volume& layer : image.layers) {
       if (layer.size() != image.header.size ||
-          layer.samples().size() != static_cast<std::size_t>(layer.size().voxels())) {
+          layer.sample_bytes() != static_cast<std::size_t>(layer.size().voxels()) *
+                                      (layer.holds_int16() ? 2 : 4)) {
         violated("a layer's size");
       }
-      for (float v : layer.samples()) {
-        if (!std::isfinite(v)) violated("a non-finite sample");
-      }
+      layer.visit([&](const auto* samples) {  // float or int16 storage
+        for (std::int64_t v = 0; v < layer.size().voxels(); ++v) {
+          if (!std::isfinite(static_cast<float>(samples[v]))) violated("a non-finite sample");
+        }
+      });
     }
     const core::LabelVolume labels = nrrd::to_label_volume(std::move(image));
     std::set<std::pair<std::size_t, std::int32_t>> seen;

@@ -5,8 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <memory>
+#include <optional>
+#include <vector>
 
 #include "volume_file/file_bytes.h"
 
@@ -303,10 +306,17 @@ NiftiImage decode_nifti(std::span<const std::uint8_t> file_bytes, const ReadOpti
                     std::to_string(h.data_bytes()) + " bytes after vox_offset, it holds " +
                     std::to_string(file_bytes.size() - h.data_offset));
   }
-  image.volume = core::Volume::uninitialized(h.size, h.geometry);
-  image.values = volume_file::decode_samples(
-      file_bytes.subspan(static_cast<std::size_t>(h.data_offset)), h.type, h.swap, 0, 1,
-      static_cast<std::size_t>(h.size.voxels()), h.slope, h.inter, image.volume.samples().data());
+  const auto data = file_bytes.subspan(static_cast<std::size_t>(h.data_offset));
+  const auto voxels = static_cast<std::size_t>(h.size.voxels());
+  if (volume_file::fits_int16(data, h.type, h.swap, 0, 1, voxels, h.slope, h.inter)) {
+    image.volume = core::Volume::uninitialized(h.size, h.geometry, core::SampleType::int16);
+    image.values = volume_file::decode_samples(data, h.type, h.swap, 0, 1, voxels, h.slope,
+                                               h.inter, image.volume.int16_samples().data());
+  } else {
+    image.volume = core::Volume::uninitialized(h.size, h.geometry);
+    image.values = volume_file::decode_samples(data, h.type, h.swap, 0, 1, voxels, h.slope,
+                                               h.inter, image.volume.samples().data());
+  }
   image.warnings = h.warnings;
   if (image.values.non_finite > 0) {
     image.warnings.push_back(std::to_string(image.values.non_finite) +
@@ -314,6 +324,104 @@ NiftiImage decode_nifti(std::span<const std::uint8_t> file_bytes, const ReadOpti
   }
   return image;
 }
+
+namespace {
+
+// `total` over consecutive runs of samples, `part` the next run's.
+void merge(volume_file::DecodeSummary& total, const volume_file::DecodeSummary& part,
+           bool first) {
+  if (first) {
+    total = part;
+    return;
+  }
+  total.non_finite += part.non_finite;
+  total.all_integer = total.all_integer && part.all_integer;
+  total.min = std::min(total.min, part.min);
+  total.max = std::max(total.max, part.max);
+}
+
+// The file's data decoded into the volume as it is read (inflated), in pieces, so that the
+// (inflated) file is never held whole. Storage: `decided` (int16_by_type), or where the values
+// decide, int16 until a piece holds a value beyond it, then float from there on (the samples
+// so far converted). The same volume, summary, warnings and refusals as decode_nifti.
+NiftiImage stream_nifti(const std::filesystem::path& path, const NiftiHeader& h,
+                        std::optional<bool> decided) {
+  bool int16 = decided.value_or(true);
+  NiftiImage image;
+  image.header = h;
+  const auto voxels = static_cast<std::size_t>(h.size.voxels());
+  const std::size_t bytes_per_sample = volume_file::sample_bytes(h.type);
+  image.volume = core::Volume::uninitialized(
+      h.size, h.geometry, int16 ? core::SampleType::int16 : core::SampleType::float32);
+  std::vector<std::uint8_t> carry;  // a sample cut between two pieces
+  std::uint64_t seen = 0;           // file bytes so far
+  std::size_t done = 0;             // samples decoded
+  auto decode = [&](std::span<const std::uint8_t> bytes, std::size_t count) {
+    if (int16 && !decided.has_value() &&
+        !volume_file::fits_int16(bytes, h.type, h.swap, 0, 1, count, h.slope, h.inter)) {
+      core::Volume as_float = core::Volume::uninitialized(h.size, h.geometry);
+      const std::int16_t* from = image.volume.int16_samples().data();
+      std::copy(from, from + done, as_float.samples().data());
+      image.volume = std::move(as_float);
+      int16 = false;
+    }
+    const auto part =
+        int16 ? volume_file::decode_samples(bytes, h.type, h.swap, 0, 1, count, h.slope, h.inter,
+                                            image.volume.int16_samples().data() + done)
+              : volume_file::decode_samples(bytes, h.type, h.swap, 0, 1, count, h.slope, h.inter,
+                                            image.volume.samples().data() + done);
+    merge(image.values, part, done == 0);
+    done += count;
+  };
+  auto sink = [&](std::span<const std::uint8_t> piece) {
+    const std::uint64_t start = seen;
+    seen += piece.size();
+    if (seen <= h.data_offset || done == voxels) return;
+    if (start < h.data_offset) piece = piece.subspan(static_cast<std::size_t>(h.data_offset - start));
+    if (!carry.empty()) {
+      const std::size_t take = std::min(bytes_per_sample - carry.size(), piece.size());
+      carry.insert(carry.end(), piece.begin(), piece.begin() + static_cast<std::ptrdiff_t>(take));
+      piece = piece.subspan(take);
+      if (carry.size() < bytes_per_sample) return;
+      decode(carry, 1);
+      carry.clear();
+    }
+    const std::size_t count = std::min(piece.size() / bytes_per_sample, voxels - done);
+    if (count > 0) decode(piece.first(count * bytes_per_sample), count);
+    if (done < voxels) carry.assign(piece.begin() + static_cast<std::ptrdiff_t>(count * bytes_per_sample), piece.end());
+  };
+  const std::uint64_t need = h.data_offset + h.data_bytes();
+  const volume_file::Bytes head = volume_file::read_file(path, 2);
+  if (volume_file::is_gzip(head)) {
+    volume_file::gunzip_file_into(path, static_cast<std::size_t>(need), sink);
+  } else {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw volume_file::FileError("cannot open the file");
+    std::vector<std::uint8_t> piece(std::size_t{1} << 20);
+    while (seen < need && in) {
+      const auto want = static_cast<std::streamsize>(
+          std::min<std::uint64_t>(piece.size(), need - seen));
+      in.read(reinterpret_cast<char*>(piece.data()), want);
+      const auto got = static_cast<std::size_t>(in.gcount());
+      if (got == 0) break;
+      sink(std::span<const std::uint8_t>(piece.data(), got));
+    }
+  }
+  if (seen <= h.data_offset) throw ReadError("NIfTI vox_offset lies beyond the end of the file");
+  if (done < voxels) {
+    throw ReadError("the NIfTI file is truncated: its data needs " +
+                    std::to_string(h.data_bytes()) + " bytes after vox_offset, it holds " +
+                    std::to_string(seen - h.data_offset));
+  }
+  image.warnings = h.warnings;
+  if (image.values.non_finite > 0) {
+    image.warnings.push_back(std::to_string(image.values.non_finite) +
+                             " non-finite value(s) (NaN or infinite) read as 0");
+  }
+  return image;
+}
+
+}  // namespace
 
 NiftiImage read_nifti(const std::filesystem::path& path, const ReadOptions& options) {
   const NiftiHeader header = read_header(path);
@@ -325,9 +433,9 @@ NiftiImage read_nifti(const std::filesystem::path& path, const ReadOptions& opti
                     ") is larger than the memory allowed for it");
   }
   try {
-    const std::uint64_t need = header.data_offset + header.data_bytes();
-    return decode_nifti(volume_file::read_maybe_gzip(path, static_cast<std::size_t>(need)),
-                        options);
+    // The data is decoded as it is read (stream_nifti), never held whole.
+    return stream_nifti(path, header,
+                        volume_file::int16_by_type(header.type, header.slope, header.inter));
   } catch (const volume_file::FileError& error) {
     throw ReadError(std::string("NIfTI: ") + error.what());
   }

@@ -3,7 +3,9 @@
 // Contract:
 //  * values: the stored samples (every integer and float type NIfTI defines except complex and
 //    RGB) times scl_slope plus scl_inter (slope 0 or non-finite: no scaling); non-finite values
-//    are stored as 0 and counted in a warning.
+//    are stored as 0 and counted in a warning. Storage: int16 when every value is an integer
+//    within int16 (an integer type, slope 1, integer intercept: volume_file::fits_int16), as
+//    a CT series loads; float otherwise. The values are the same either way.
 //  * geometry: the sform when sform_code > 0, else the qform when qform_code > 0, else the pixel
 //    spacing alone (a warning: orientation unknown); NIfTI's world is RAS, so x and y are negated
 //    to give LPS (a rotation: handedness, and so surface winding, is kept). The origin is the

@@ -67,11 +67,17 @@ NrrdImage decode_nrrd_data(NrrdHeader header, std::span<const std::uint8_t> data
   const std::size_t layers = header.layers;
   bool first = true;
   for (std::size_t l = 0; l < layers; ++l) {
-    core::Volume volume = core::Volume::uninitialized(header.size, header.geometry);
     const std::size_t start = header.layer_axis_first ? l : l * voxels;
     const std::size_t stride = header.layer_axis_first ? layers : 1;
-    const auto summary = volume_file::decode_samples(data, header.type, swap, start, stride, voxels,
-                                                     1.0, 0.0, volume.samples().data());
+    const bool int16 =
+        volume_file::fits_int16(data, header.type, swap, start, stride, voxels, 1.0, 0.0);
+    core::Volume volume = core::Volume::uninitialized(
+        header.size, header.geometry, int16 ? core::SampleType::int16 : core::SampleType::float32);
+    const auto summary =
+        int16 ? volume_file::decode_samples(data, header.type, swap, start, stride, voxels, 1.0,
+                                            0.0, volume.int16_samples().data())
+              : volume_file::decode_samples(data, header.type, swap, start, stride, voxels, 1.0,
+                                            0.0, volume.samples().data());
     if (first) {
       image.values = summary;
       first = false;

@@ -6,7 +6,8 @@
 //  * layers: a 3D file gives one; a 4D file with a list axis (Slicer's layered segmentations:
 //    list axis first) gives one per entry, all on the same grid.
 //  * values: the stored samples of every integer and float type, in either byte order;
-//    non-finite values are stored as 0 and counted in a warning.
+//    non-finite values are stored as 0 and counted in a warning. Storage, per layer: int16 when
+//    every value is an integer within int16 (volume_file::fits_int16), float otherwise.
 //  * refused with ReadError (one line, naming no content of the file): not NRRD, a truncated
 //    header or data, damaged gzip, unsupported encodings (ascii, hex, bzip2), several data
 //    files, sizes whose product overflows, singular or non-finite directions, a volume larger

@@ -11,6 +11,7 @@
 #include <cassert>
 #include <climits>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -18,13 +19,16 @@
 #include <string>
 #include <vector>
 
+#include "preprocess/consumed_input.h"
+
 namespace typemerge::preprocess {
 namespace {
 
 using core::Volume;
 
 void assert_volume(const Volume& volume) {
-  assert(static_cast<std::int64_t>(volume.samples().size()) == volume.size().voxels());
+  assert(volume.sample_bytes() ==
+         static_cast<std::size_t>(volume.size().voxels()) * (volume.holds_int16() ? 2 : 4));
   assert(volume.size().nx <= INT_MAX && volume.size().ny <= INT_MAX);
   for (int axis = 0; axis < 3; ++axis) assert(volume.geometry().spacing(axis) > 0);
   (void)volume;
@@ -42,19 +46,41 @@ cv::Mat slice_image(Volume& volume, std::int64_t k) {
                  volume.slice(k));
 }
 
-// Runs `filter(source, destination)` on every slice: the slice is copied to a scratch image
-// first because cv::medianBlur and cv::bilateralFilter do not work in place.
+// Runs `filter(source, destination)` on every slice; the result is float storage.
+//   float input: in place, each slice copied to a scratch image first (cv::medianBlur and
+//     cv::bilateralFilter do not work in place);
+//   int16 input: each slice converted into the scratch image and filtered into a new float
+//     volume, the input's storage returned to the OS as its slices are read
+//     (ConsumedInput), so that the peak is the float output, not output + input.
+// The values are the same either way: an int16 sample converts to the float of its integer.
 template <typename Filter>
 void filter_slices(Volume& volume, const char* step, Filter filter) {
-  const auto& size = volume.size();
-  cv::Mat scratch(static_cast<int>(size.ny), static_cast<int>(size.nx), CV_32FC1);
+  const core::VolumeSize size = volume.size();
+  const int rows = static_cast<int>(size.ny), columns = static_cast<int>(size.nx);
+  cv::Mat scratch(rows, columns, CV_32FC1);
   try {
-    for (std::int64_t k = 0; k < size.nz; ++k) {
-      cv::Mat slice = slice_image(volume, k);
-      slice.copyTo(scratch);
-      filter(scratch, slice);
-      assert(slice.data == reinterpret_cast<uchar*>(volume.slice(k)));  // no reallocation
+    if (!volume.holds_int16()) {
+      for (std::int64_t k = 0; k < size.nz; ++k) {
+        cv::Mat slice = slice_image(volume, k);
+        slice.copyTo(scratch);
+        filter(scratch, slice);
+        assert(slice.data == reinterpret_cast<uchar*>(volume.slice(k)));  // no reallocation
+      }
+      return;
     }
+    Volume output = Volume::uninitialized(size, volume.geometry());
+    const std::int16_t* input = volume.int16_samples().data();
+    const auto slice_voxels = static_cast<std::size_t>(size.nx * size.ny);
+    ConsumedInput consumed(input);
+    for (std::int64_t k = 0; k < size.nz; ++k) {
+      const std::int16_t* source = input + static_cast<std::size_t>(k) * slice_voxels;
+      std::copy(source, source + slice_voxels, scratch.ptr<float>());
+      cv::Mat slice = slice_image(output, k);
+      filter(scratch, slice);
+      assert(slice.data == reinterpret_cast<uchar*>(output.slice(k)));  // no reallocation
+      consumed.consumed(static_cast<std::size_t>(k + 1) * slice_voxels * sizeof(std::int16_t));
+    }
+    volume = std::move(output);
   } catch (const cv::Exception& error) {
     throw std::runtime_error(std::string(step) + ": OpenCV: " + error.what());
   }
@@ -112,7 +138,6 @@ std::string voxels3(const double (&v)[3]) {
 }  // namespace
 
 StepResult gaussian_filter(Volume volume, const GaussianOptions& options) {
-  volume.to_float();  // filtered values are not integers
   require(positive(options.sigma_mm), std::string("gaussian_filter: sigma_mm must be > 0, got ") +
                                           detail::format_number(options.sigma_mm));
   require(std::isfinite(options.truncate) && options.truncate >= 1,
@@ -159,7 +184,6 @@ StepResult gaussian_filter(Volume volume, const GaussianOptions& options) {
 }
 
 StepResult median_filter(Volume volume, const MedianOptions& options) {
-  volume.to_float();  // filtered values are not integers
   require(
       options.in_plane_size == 3 || options.in_plane_size == 5,
       std::string("median_filter: in_plane_size must be 3 or 5 (cv::medianBlur on float), got ") +
@@ -196,7 +220,6 @@ StepResult median_filter(Volume volume, const MedianOptions& options) {
 }
 
 StepResult bilateral_filter(Volume volume, const BilateralOptions& options) {
-  volume.to_float();  // filtered values are not integers
   require(positive(options.sigma_mm), std::string("bilateral_filter: sigma_mm must be > 0, got ") +
                                           detail::format_number(options.sigma_mm));
   require(positive(options.sigma_hu), std::string("bilateral_filter: sigma_hu must be > 0, got ") +

@@ -17,11 +17,15 @@
 // is the spacing used; the kernel is then a Gaussian in the sheared frame, not a rotationally
 // symmetric one in patient space. For tilts of a few degrees the difference is negligible.
 //
-// Memory: the filters work in place on the volume they are given (pass it with std::move to
-// avoid the copy) plus a scratch of one slice and one nx×nz plane: peak ≈ 1 volume + 2 slices.
+// Output: float storage (filtered values are not integers). Memory, besides a scratch of one
+// slice and one nx×nz plane: a float volume is filtered in place (pass it with std::move to
+// avoid the copy): peak ≈ 4 bytes a voxel. An int16 volume is read slice by slice into the
+// new float volume, and the input's storage is returned to the OS (Linux) as its slices are
+// read, so the two are not held whole together: peak ≈ 4 bytes a voxel + 2 MiB, where a
+// whole-volume conversion first would hold 6. The result is the same for both storages.
 //
-// Preconditions (asserted): samples().size() == size().voxels(), positive spacings, nx and ny
-// fit in an int. Invalid options throw std::invalid_argument naming the option.
+// Preconditions (asserted): the samples fill the volume, positive spacings, nx and ny fit in
+// an int. Invalid options throw std::invalid_argument naming the option.
 #pragma once
 
 #include "core/volume.h"

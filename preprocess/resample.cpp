@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "preprocess/consumed_input.h"
+
 namespace typemerge::preprocess {
 namespace {
 
@@ -77,8 +79,10 @@ void blend(const Sample* a, const Sample* b, float w, float* out, std::int64_t n
 }
 
 // Resamples with index step `step` (old voxels per new voxel) along each axis.
+// With `consume`, the input's storage is returned to the OS as its slices are read for the last
+// time (ConsumedInput): the caller frees it afterwards and does not read it again.
 StepResult resample_by_step(const Volume& volume, const double (&step)[3], const char* name,
-                            std::int64_t max_output_voxels) {
+                            std::int64_t max_output_voxels, bool consume = false) {
   assert_volume(volume);
   const VolumeSize& in = volume.size();
   const double counts[3] = {output_count(in.nx, step[0]), output_count(in.ny, step[1]),
@@ -107,6 +111,9 @@ StepResult resample_by_step(const Volume& volume, const double (&step)[3], const
   std::vector<float> row(static_cast<std::size_t>(in.nx));
   const std::int64_t k_high_limit = in.nz - 1;
   const std::int64_t j_high_limit = in.ny - 1;
+  const std::size_t slice_bytes =
+      static_cast<std::size_t>(in.nx * in.ny) * (volume.holds_int16() ? 2 : 4);
+  ConsumedInput consumed(volume.visit([](const auto* samples) -> const void* { return samples; }));
   for (std::int64_t kp = 0; kp < out.nz; ++kp) {
     const std::int64_t k = taps_k.low[static_cast<std::size_t>(kp)];
     volume.visit([&](const auto* samples) {
@@ -127,6 +134,11 @@ StepResult resample_by_step(const Volume& volume, const double (&step)[3], const
         out_row[ip] = w == 0.0f ? a : a + w * (row[static_cast<std::size_t>(i + 1)] - a);
       }
     }
+    // Output slices from kp + 1 on read input slices from their lowest tap on.
+    if (consume && kp + 1 < out.nz) {
+      consumed.consumed(static_cast<std::size_t>(taps_k.low[static_cast<std::size_t>(kp + 1)]) *
+                        slice_bytes);
+    }
   }
   return result;
 }
@@ -146,7 +158,9 @@ void describe(StepRecord& record, const Volume& before, const Volume& after) {
 
 }  // namespace
 
-StepResult resample(const Volume& volume, const ResampleOptions& options) {
+namespace {
+
+StepResult resample_impl(const Volume& volume, const ResampleOptions& options, bool consume) {
   for (int axis = 0; axis < 3; ++axis) {
     if (!positive(options.voxel_size_mm[axis])) {
       throw std::invalid_argument("resample: voxel_size_mm[" + std::to_string(axis) +
@@ -158,7 +172,8 @@ StepResult resample(const Volume& volume, const ResampleOptions& options) {
   for (int axis = 0; axis < 3; ++axis) {
     step[axis] = options.voxel_size_mm[axis] / volume.geometry().spacing(axis);
   }
-  StepResult result = resample_by_step(volume, step, "resample", options.max_output_voxels);
+  StepResult result =
+      resample_by_step(volume, step, "resample", options.max_output_voxels, consume);
   result.record.step = "resample";
   result.record.parameters = {{"voxel_size_mm_i", detail::format_number(options.voxel_size_mm[0])},
                               {"voxel_size_mm_j", detail::format_number(options.voxel_size_mm[1])},
@@ -168,7 +183,7 @@ StepResult resample(const Volume& volume, const ResampleOptions& options) {
   return result;
 }
 
-StepResult resample_isotropic(const Volume& volume, const IsotropicOptions& options) {
+StepResult isotropic_impl(const Volume& volume, const IsotropicOptions& options, bool consume) {
   if (!std::isfinite(options.voxel_size_mm) || options.voxel_size_mm < 0) {
     throw std::invalid_argument(
         std::string("resample_isotropic: voxel_size_mm must be ≥ 0 (0: smallest spacing), got ") +
@@ -180,13 +195,36 @@ StepResult resample_isotropic(const Volume& volume, const IsotropicOptions& opti
       options.voxel_size_mm > 0
           ? options.voxel_size_mm
           : std::min({geometry.spacing(0), geometry.spacing(1), geometry.spacing(2)});
-  StepResult result = resample(volume, {{size, size, size}, options.max_output_voxels});
+  StepResult result =
+      resample_impl(volume, {{size, size, size}, options.max_output_voxels}, consume);
   result.record.step = "resample_isotropic";
   result.record.parameters.insert(
       result.record.parameters.begin(),
       {"requested_voxel_size_mm", detail::format_number(options.voxel_size_mm)});
   result.record.description = std::string("isotropic ") + detail::format_number(size) + " mm: ";
   describe(result.record, volume, result.volume);
+  return result;
+}
+
+}  // namespace
+
+StepResult resample(const Volume& volume, const ResampleOptions& options) {
+  return resample_impl(volume, options, false);
+}
+
+StepResult resample(Volume&& volume, const ResampleOptions& options) {
+  StepResult result = resample_impl(volume, options, true);
+  volume = Volume();
+  return result;
+}
+
+StepResult resample_isotropic(const Volume& volume, const IsotropicOptions& options) {
+  return isotropic_impl(volume, options, false);
+}
+
+StepResult resample_isotropic(Volume&& volume, const IsotropicOptions& options) {
+  StepResult result = isotropic_impl(volume, options, true);
+  volume = Volume();
   return result;
 }
 

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <stdexcept>
 #include <vector>
@@ -35,8 +36,17 @@ bool is_gzip(std::span<const std::uint8_t> bytes);
 // Garbage after the last member is ignored.
 Bytes gunzip(std::span<const std::uint8_t> compressed, std::size_t max_bytes);
 
-// The file's bytes as its content is: inflated when it starts with the gzip magic, else raw,
-// at most `max_bytes` either way.
+// The same stream handed to `sink` in pieces of at most 1 MiB, in order (together, gunzip's
+// bytes), instead of held whole; the same errors, thrown after the pieces before the damage.
+void gunzip_into(std::span<const std::uint8_t> compressed, std::size_t max_bytes,
+                 const std::function<void(std::span<const std::uint8_t>)>& sink);
+// The same for a gzip file read in pieces of 1 MiB (the compressed file is not held whole
+// either). Throws FileError also when the file cannot be opened.
+void gunzip_file_into(const std::filesystem::path& path, std::size_t max_bytes,
+                      const std::function<void(std::span<const std::uint8_t>)>& sink);
+
+// The file's bytes as its content is: inflated when it starts with the gzip magic (read in
+// pieces: gunzip_file_into), else raw, at most `max_bytes` either way.
 Bytes read_maybe_gzip(const std::filesystem::path& path, std::size_t max_bytes);
 
 }  // namespace typemerge::volume_file

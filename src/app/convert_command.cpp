@@ -498,7 +498,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
       const auto start = Clock::now();
       preprocess::IsotropicOptions isotropic;
       isotropic.voxel_size_mm = options.voxel_size_mm;
-      auto step = preprocess::resample_isotropic(volume, isotropic);
+      auto step = preprocess::resample_isotropic(std::move(volume), isotropic);
       volume = std::move(step.volume);
       steps.push_back(record_json(step.record, ms_since(start)));
     }

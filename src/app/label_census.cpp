@@ -15,20 +15,21 @@ void add(LabelExtent& e, std::int64_t i, std::int64_t j, std::int64_t k) {
   e.max = {std::max(e.max[0], i), std::max(e.max[1], j), std::max(e.max[2], k)};
 }
 
-}  // namespace
-
-std::map<std::int32_t, LabelExtent> label_census(const core::Volume& layer) {
-  const auto& size = layer.size();
+// Over the samples as stored (float or int16: core::Volume::visit), read as floats.
+template <typename Sample>
+std::map<std::int32_t, LabelExtent> census_of(const Sample* samples, const core::VolumeSize& size) {
   float largest = 0;
-  for (float v : layer.samples()) largest = std::max(largest, v);
+  for (std::int64_t v = 0; v < size.voxels(); ++v) {
+    largest = std::max(largest, static_cast<float>(samples[v]));
+  }
   std::map<std::int32_t, LabelExtent> census;
   if (largest <= 65535.0f) {
     std::vector<LabelExtent> table(static_cast<std::size_t>(largest) + 1);
     for (std::int64_t k = 0; k < size.nz; ++k) {
       for (std::int64_t j = 0; j < size.ny; ++j) {
-        const float* row = layer.slice(k) + j * size.nx;
+        const Sample* row = samples + (k * size.ny + j) * size.nx;
         for (std::int64_t i = 0; i < size.nx; ++i) {
-          if (row[i] > 0) add(table[static_cast<std::size_t>(row[i])], i, j, k);
+          if (row[i] > 0) add(table[static_cast<std::size_t>(static_cast<float>(row[i]))], i, j, k);
         }
       }
     }
@@ -39,13 +40,19 @@ std::map<std::int32_t, LabelExtent> label_census(const core::Volume& layer) {
   }
   for (std::int64_t k = 0; k < size.nz; ++k) {
     for (std::int64_t j = 0; j < size.ny; ++j) {
-      const float* row = layer.slice(k) + j * size.nx;
+      const Sample* row = samples + (k * size.ny + j) * size.nx;
       for (std::int64_t i = 0; i < size.nx; ++i) {
-        if (row[i] > 0) add(census[static_cast<std::int32_t>(row[i])], i, j, k);
+        if (row[i] > 0) add(census[static_cast<std::int32_t>(static_cast<float>(row[i]))], i, j, k);
       }
     }
   }
   return census;
+}
+
+}  // namespace
+
+std::map<std::int32_t, LabelExtent> label_census(const core::Volume& layer) {
+  return layer.visit([&](const auto* samples) { return census_of(samples, layer.size()); });
 }
 
 }  // namespace typemerge::app

@@ -107,24 +107,25 @@ core::Volume label_field(const core::Volume& layer, std::int32_t label, const La
   // indicator, and the label's voxels as a byte mask for the clamp (a quarter of a copy).
   const std::int64_t i0 = std::max<std::int64_t>(0, -lo[0]);
   const std::int64_t i1 = std::min<std::int64_t>(n[0], size.nx - lo[0]);
-  const float* samples = layer.samples().data();
   auto& out = field.samples();
   std::vector<std::uint8_t> member(out.size(), 0);
-  for (std::int64_t k = 0; k < n[2]; ++k) {
-    const std::int64_t z = lo[2] + k;
-    if (z < 0 || z >= size.nz) continue;
-    for (std::int64_t j = 0; j < n[1]; ++j) {
-      const std::int64_t y = lo[1] + j;
-      if (y < 0 || y >= size.ny || i1 <= i0) continue;
-      const float* row = samples + static_cast<std::size_t>(lo[0] + size.nx * (y + size.ny * z));
-      const auto at = static_cast<std::size_t>(n[0] * (j + n[1] * k));
-      for (std::int64_t i = i0; i < i1; ++i) {
-        const bool in = row[i] == value;
-        out[at + static_cast<std::size_t>(i)] = in ? 1.0f : 0.0f;
-        member[at + static_cast<std::size_t>(i)] = in ? 1 : 0;
+  layer.visit([&](const auto* samples) {  // float or int16 storage, read as floats
+    for (std::int64_t k = 0; k < n[2]; ++k) {
+      const std::int64_t z = lo[2] + k;
+      if (z < 0 || z >= size.nz) continue;
+      for (std::int64_t j = 0; j < n[1]; ++j) {
+        const std::int64_t y = lo[1] + j;
+        if (y < 0 || y >= size.ny || i1 <= i0) continue;
+        const auto* row = samples + static_cast<std::size_t>(lo[0] + size.nx * (y + size.ny * z));
+        const auto at = static_cast<std::size_t>(n[0] * (j + n[1] * k));
+        for (std::int64_t i = i0; i < i1; ++i) {
+          const bool in = static_cast<float>(row[i]) == value;
+          out[at + static_cast<std::size_t>(i)] = in ? 1.0f : 0.0f;
+          member[at + static_cast<std::size_t>(i)] = in ? 1 : 0;
+        }
       }
     }
-  }
+  });
   if (sigma_mm <= 0) return field;
   preprocess::GaussianOptions gaussian;
   gaussian.sigma_mm = sigma_mm;

@@ -8,10 +8,12 @@
 #include <functional>
 #include <limits>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
+#include "core/plane_side.h"
 #include "core/self_intersections.h"
 #include "core/triangle_grid.h"
 
@@ -27,10 +29,13 @@ using Triangle = std::array<std::uint32_t, 3>;
 // levels cut a triangle's circumradius 8-fold (a fourth doubled the tests for few more
 // collapses; docs/benchmarks.md).
 constexpr int kLipschitzDepth = 3;
+// Halvings of a new triangle the corner test may make (one search each) before the centroid
+// test takes over.
+constexpr int kBisectDepth = 2;
 // cos 78°: a new triangle may turn at most this far from the one it replaces.
 constexpr double kMinTurnCosine = 0.2079;
-// Cells of the crossing grid at most: the grid's cell is raised until it fits.
-constexpr double kMaxGridCells = 1 << 20;
+// The crossing grid's cell, in mean edges of the live triangles.
+constexpr double kCellEdges = 4.0;
 
 Point3 sub(const Point3& a, const Point3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 double dot(const Point3& a, const Point3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -77,61 +82,117 @@ bool boxes_meet(const Box& a, const Box& b) {
   return true;
 }
 
-// Triangles in a uniform grid of cells holding lists, for a surface whose triangles change.
+// The largest distance from a point of triangle abc to its nearest corner: the circumradius
+// when no angle is obtuse (the circumcentre is in the triangle); otherwise the Voronoi cells of
+// the corners meet the longest side at the points equidistant from its ends and the obtuse
+// corner, the farthest points (the distance to a corner is convex, its maximum over a cell at
+// a vertex of the cell). Infinite for a degenerate triangle.
+double cover_radius(const Point3& a, const Point3& b, const Point3& c) {
+  const double la2 = dot(sub(b, c), sub(b, c));  // opposite a
+  const double lb2 = dot(sub(c, a), sub(c, a));  // opposite b
+  const double lc2 = dot(sub(a, b), sub(a, b));  // opposite c
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  // With the obtuse corner at C (its opposite side AB the longest), the point of AB as far from
+  // A as from C is |AC|² |AB| / (|AC|² + |AB|² − |BC|²) from A, likewise for B.
+  auto obtuse = [&](double opp2, double s12, double s22) {  // opp2 > s12 + s22
+    const double opp = std::sqrt(opp2);
+    const double d1 = s12 + opp2 - s22;
+    const double d2 = s22 + opp2 - s12;
+    if (!(d1 > 0.0) || !(d2 > 0.0)) return kInf;
+    return std::max(s12 * opp / d1, s22 * opp / d2);
+  };
+  if (la2 > lb2 + lc2) return obtuse(la2, lb2, lc2);
+  if (lb2 > lc2 + la2) return obtuse(lb2, lc2, la2);
+  if (lc2 > la2 + lb2) return obtuse(lc2, la2, lb2);
+  const Point3 ab = sub(b, a);
+  const Point3 ac = sub(c, a);
+  const Point3 n = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2],
+                    ab[0] * ac[1] - ab[1] * ac[0]};
+  const double twice_area = std::sqrt(dot(n, n));
+  if (!(twice_area > 0.0)) return kInf;
+  return std::sqrt(la2 * lb2 * lc2) / (2.0 * twice_area);  // abc / (4 area)
+}
+
+// Triangles in a hashed uniform grid, for a surface whose triangles change: the cells (`cell`
+// wide) a triangle's box meets list it with its box, the cells hashed into a table of lists (a
+// surface fills few of its bounding box's cells; cells sharing a list only add entries, which
+// the box test rejects). Boxes in float: the corners are floats, so they are exact.
 class FaceGrid {
  public:
-  FaceGrid(const Point3& lo, const Point3& hi, double cell, double most_cells) : lo_(lo) {
-    for (int a = 0; a < 3; ++a) cell = std::max(cell, (hi[a] - lo[a]) / 1024.0);
+  FaceGrid(const Point3& lo, const Point3& hi, double cell, std::size_t lists) : lo_(lo) {
+    std::size_t n = 4096;
+    while (n < lists) n *= 2;
+    mask_ = n - 1;
+    lists_.resize(n);
+    // At most 16 cells a list over the bounding box (box queries are clipped to it), so a
+    // stray large triangle visits a bounded number of cells.
     cell = std::max(cell, 1e-9);
     auto cells_at = [&](double c) {
-      double n = 1.0;
-      for (int a = 0; a < 3; ++a) n *= std::floor((hi[a] - lo[a]) / c) + 1.0;
-      return n;
+      double cells = 1.0;
+      for (int a = 0; a < 3; ++a) cells *= std::floor((hi[a] - lo[a]) / c) + 1.0;
+      return cells;
     };
-    most_cells = std::max(most_cells, 4096.0);
-    while (cells_at(cell) > most_cells) cell *= 1.25;
+    while (cells_at(cell) > 16.0 * static_cast<double>(n)) cell *= 1.25;
     cell_ = cell;
-    for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo[a]) / cell_) + 1;
-    cells_.resize(static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2]);
+    for (int a = 0; a < 3; ++a) dims_[a] = static_cast<std::int64_t>((hi[a] - lo[a]) / cell_) + 1;
   }
 
   void insert(std::uint32_t face, const Box& box) {
-    for_each_cell(box, [&](std::vector<std::uint32_t>& list) { list.push_back(face); });
+    Entry entry{face, {}, {}};
+    for (int a = 0; a < 3; ++a) {
+      entry.lo[a] = static_cast<float>(box.lo[a]);
+      entry.hi[a] = static_cast<float>(box.hi[a]);
+    }
+    for_each_cell(box, [&](std::vector<Entry>& list) { list.push_back(entry); });
   }
   void erase(std::uint32_t face, const Box& box) {
-    for_each_cell(box, [&](std::vector<std::uint32_t>& list) {
-      auto it = std::find(list.begin(), list.end(), face);
+    for_each_cell(box, [&](std::vector<Entry>& list) {
+      auto it = std::find_if(list.begin(), list.end(), [&](const Entry& e) { return e.face == face; });
       if (it != list.end()) {
         *it = list.back();
         list.pop_back();
       }
     });
   }
-  // Calls f(face) for every listed face in a cell `box` meets (a face may come more than once).
+  // Calls f(face) for every face entered with a box that meets `box` (a face may come more than
+  // once).
+  // With f(face, its box) when f takes two arguments.
   template <typename F>
   void visit(const Box& box, const F& f) {
-    for_each_cell(box, [&](std::vector<std::uint32_t>& list) {
-      for (std::uint32_t face : list) f(face);
+    for_each_cell(box, [&](std::vector<Entry>& list) {
+      for (const Entry& e : list) {
+        if (e.hi[0] < box.lo[0] || box.hi[0] < e.lo[0] || e.hi[1] < box.lo[1] ||
+            box.hi[1] < e.lo[1] || e.hi[2] < box.lo[2] || box.hi[2] < e.lo[2]) {
+          continue;
+        }
+        if constexpr (std::is_invocable_v<F, std::uint32_t, const Box&>) {
+          const Box entry_box{{e.lo[0], e.lo[1], e.lo[2]}, {e.hi[0], e.hi[1], e.hi[2]}};
+          f(e.face, entry_box);
+        } else {
+          f(e.face);
+        }
+      }
     });
   }
 
  private:
   template <typename F>
   void for_each_cell(const Box& box, const F& f) {
-    std::array<int, 3> c0{};
-    std::array<int, 3> c1{};
+    std::array<std::int64_t, 3> c0{};
+    std::array<std::int64_t, 3> c1{};
     for (int a = 0; a < 3; ++a) {
-      c0[a] = std::clamp(static_cast<int>(std::floor((box.lo[a] - lo_[a]) / cell_)), 0,
-                         dims_[a] - 1);
-      c1[a] = std::clamp(static_cast<int>(std::floor((box.hi[a] - lo_[a]) / cell_)), 0,
-                         dims_[a] - 1);
+      c0[a] = std::clamp(static_cast<std::int64_t>(std::floor((box.lo[a] - lo_[a]) / cell_)),
+                         std::int64_t{0}, dims_[a] - 1);
+      c1[a] = std::clamp(static_cast<std::int64_t>(std::floor((box.hi[a] - lo_[a]) / cell_)),
+                         std::int64_t{0}, dims_[a] - 1);
     }
-    for (int z = c0[2]; z <= c1[2]; ++z) {
-      for (int y = c0[1]; y <= c1[1]; ++y) {
-        for (int x = c0[0]; x <= c1[0]; ++x) {
-          f(cells_[static_cast<std::size_t>(x) +
-                   static_cast<std::size_t>(dims_[0]) *
-                       (static_cast<std::size_t>(y) + static_cast<std::size_t>(dims_[1]) * z)]);
+    for (std::int64_t z = c0[2]; z <= c1[2]; ++z) {
+      for (std::int64_t y = c0[1]; y <= c1[1]; ++y) {
+        for (std::int64_t x = c0[0]; x <= c1[0]; ++x) {
+          const auto key = static_cast<std::uint64_t>(x) * 73856093u ^
+                           static_cast<std::uint64_t>(y) * 19349663u ^
+                           static_cast<std::uint64_t>(z) * 83492791u;
+          f(lists_[static_cast<std::size_t>(key & mask_)]);
         }
       }
     }
@@ -139,9 +200,17 @@ class FaceGrid {
 
   Point3 lo_;
   double cell_ = 1.0;
-  std::array<int, 3> dims_{};
-  std::vector<std::vector<std::uint32_t>> cells_;
+  std::array<std::int64_t, 3> dims_{};
+  struct Entry {
+    std::uint32_t face;
+    std::array<float, 3> lo;
+    std::array<float, 3> hi;
+  };
+  std::uint64_t mask_ = 0;
+  std::vector<std::vector<Entry>> lists_;
 };
+
+constexpr std::uint32_t kNoFace = std::numeric_limits<std::uint32_t>::max();
 
 // A part of a reference triangle: the triangle itself (depth 0) or one of the four parts of
 // the midpoint split of a part, `path` giving the part taken at each level (two bits a level).
@@ -152,6 +221,8 @@ struct Patch {
 };
 // Levels of splitting a reference triangle that no single surface triangle covers.
 constexpr int kPatchDepth = 3;
+
+enum class Proof { yes, no, unknown };
 
 struct Candidate {
   double cost;
@@ -164,6 +235,65 @@ struct Candidate {
     if (from != o.from) return from > o.from;
     return to > o.to;
   }
+};
+
+// A 4-ary min-heap of candidates in a vector (half the levels of a binary heap, the four
+// children of an entry side by side: fewer cache misses on a queue of a million entries).
+// The order is total (cost, from, to), so it pops what std::pop_heap would.
+class CandidateHeap {
+ public:
+  bool empty() const { return items_.empty(); }
+  std::size_t size() const { return items_.size(); }
+  // Appends without ordering; make() orders.
+  void append(const Candidate& c) { items_.push_back(c); }
+  void make() {
+    for (std::size_t i = items_.size() / 4 + 1; i-- > 0;) sift_down(i);
+  }
+  void push(const Candidate& c) {
+    items_.push_back(c);
+    std::size_t i = items_.size() - 1;
+    while (i > 0) {
+      const std::size_t parent = (i - 1) / 4;
+      if (!(items_[parent] > c)) break;
+      items_[i] = items_[parent];
+      i = parent;
+    }
+    items_[i] = c;
+  }
+  Candidate pop() {
+    const Candidate top = items_.front();
+    items_.front() = items_.back();
+    items_.pop_back();
+    if (!items_.empty()) sift_down(0);
+    return top;
+  }
+  template <typename P>
+  void erase_if(const P& p) {
+    std::erase_if(items_, p);
+    make();
+  }
+
+ private:
+  void sift_down(std::size_t i) {
+    const std::size_t n = items_.size();
+    if (i >= n) return;
+    const Candidate c = items_[i];
+    for (;;) {
+      const std::size_t first = 4 * i + 1;
+      if (first >= n) break;
+      std::size_t best = first;
+      const std::size_t last = std::min(first + 4, n);
+      for (std::size_t k = first + 1; k < last; ++k) {
+        if (items_[best] > items_[k]) best = k;
+      }
+      if (!(c > items_[best])) break;
+      items_[i] = items_[best];
+      i = best;
+    }
+    items_[i] = c;
+  }
+
+  std::vector<Candidate> items_;
 };
 
 class Collapser {
@@ -184,13 +314,15 @@ class Collapser {
     version_.assign(nv, 0);
     held_.assign(nv, 0);
     mark_.assign(nv, 0);
-    ring_mark_.assign(nv, 0);
     alive_.assign(nf, 1);
     face_mark_.assign(nf, 0);
     visited_.assign(nf, 0);
     refs_of_.resize(nf);
+    refused_from_.resize(nv);
     ref_stamp_.assign(ref_.triangles.size(), 0);
+    vertex_distance_.assign(nv, -1.0);
     live_ = nf;
+    grid_live_ = nf;
     for (std::uint32_t f = 0; f < nf; ++f) {
       const Triangle& t = s_.triangles[f];
       const Point3 n = triangle_area_vector(s_, t);
@@ -215,22 +347,23 @@ class Collapser {
       const Triangle& t = s_.triangles[f];
       for (int k = 0; k < 3; ++k) push(t[k], t[(k + 1) % 3]);
     }
-    std::make_heap(heap_.begin(), heap_.end(), std::greater<>{});
+    heap_.make();
     std::size_t compact_at = 2 * heap_.size();
     while (!heap_.empty() && (target == 0 || live_ > target)) {
-      std::pop_heap(heap_.begin(), heap_.end(), std::greater<>{});
-      const Candidate c = heap_.back();
-      heap_.pop_back();
+      const Candidate c = heap_.pop();
       if (stale(c)) continue;
       if (faces_of_[c.from].empty() || held_[c.from]) continue;
-      if (!collapse(c.from, c.to)) continue;
+      if (!collapse(c.from, c.to)) {
+        refused_from_[c.from].push_back(c.to);
+        continue;
+      }
       ++stats_.collapses;
+      if (3 * live_ < 2 * grid_live_) rebuild_grid();
       requeue_around(c.to);
       if (heap_.size() > compact_at) {
         // Stale candidates out (a collapse outdates those around it), so the queue stays
         // within a few entries an edge.
-        std::erase_if(heap_, [&](const Candidate& e) { return stale(e); });
-        std::make_heap(heap_.begin(), heap_.end(), std::greater<>{});
+        heap_.erase_if([&](const Candidate& e) { return stale(e); });
         compact_at = std::max<std::size_t>(2 * heap_.size(), 1024);
       }
     }
@@ -252,8 +385,34 @@ class Collapser {
       edge += std::sqrt(dot(d, d));
     }
     edge /= static_cast<double>(std::max<std::size_t>(mesh.triangles.size(), 1));
-    return FaceGrid(b.min, b.max, 2.0 * edge,
-                    std::min(kMaxGridCells, 4.0 * static_cast<double>(mesh.triangles.size())));
+    return FaceGrid(b.min, b.max, kCellEdges * edge, 2 * mesh.triangles.size());
+  }
+
+  // The crossing grid anew for the live triangles, its cells two of their mean edges: as
+  // collapses make triangles larger, a grid sized for the first ones lists each in more and
+  // more cells (the crossing test then visits each candidate many times).
+  void rebuild_grid() {
+    Point3 lo = pos_[s_.triangles[0][0]];
+    Point3 hi = lo;
+    double edge = 0.0;
+    for (std::uint32_t f = 0; f < s_.triangles.size(); ++f) {
+      if (!alive_[f]) continue;
+      const Triangle& t = s_.triangles[f];
+      for (auto v : t) {
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], pos_[v][a]);
+          hi[a] = std::max(hi[a], pos_[v][a]);
+        }
+      }
+      const Point3 d = sub(pos_[t[1]], pos_[t[0]]);
+      edge += std::sqrt(dot(d, d));
+    }
+    edge /= static_cast<double>(std::max<std::size_t>(live_, 1));
+    grid_ = FaceGrid(lo, hi, kCellEdges * edge, 2 * live_);
+    for (std::uint32_t f = 0; f < s_.triangles.size(); ++f) {
+      if (alive_[f]) grid_.insert(f, box_of(s_.triangles[f]));
+    }
+    grid_live_ = live_;
   }
 
   Box box_of(const Triangle& t) const {
@@ -330,6 +489,7 @@ class Collapser {
     std::uint32_t query = 0;
     constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
     std::vector<Patch> todo;
+    std::uint32_t last = kNone;
     for (std::uint32_t r = 0; r < ref_.triangles.size(); ++r) {
       todo.push_back({r, 0, 0});
       bool held = false;
@@ -339,6 +499,11 @@ class Collapser {
         const std::array<Point3, 3> c = corners(patch);
         const Point3 g = {(c[0][0] + c[1][0] + c[2][0]) / 3.0, (c[0][1] + c[1][1] + c[2][1]) / 3.0,
                           (c[0][2] + c[1][2] + c[2][2]) / 3.0};
+        // Consecutive reference triangles are neighbours, often covered by the same triangle.
+        if (last != kNone && covers(last, c)) {
+          refs_of_[last].push_back(patch);
+          continue;
+        }
         std::uint32_t found = kNone;
         initial.nearest_squared(g, stamp, ++query, std::numeric_limits<double>::infinity(), &found);
         if (found == kNone || !covers(found, c)) {
@@ -349,6 +514,7 @@ class Collapser {
         }
         if (found != kNone) {
           refs_of_[found].push_back(patch);
+          last = found;
         } else if (patch.depth < kPatchDepth) {
           for (int k = 0; k < 4; ++k) todo.push_back(part(patch, k));
         } else {
@@ -362,57 +528,153 @@ class Collapser {
     }
   }
 
-  // Assigns `patch`, or its parts, to triangles of candidates_ (into reassigned_).
-  bool reassign(const Patch& patch) {
+  // Assigns `patch`, or its parts, to triangles of candidates_ (into reassigned_), `hint`
+  // (the last triangle that covered one) tried first.
+  bool reassign(const Patch& patch, std::uint32_t& hint) {
     const std::array<Point3, 3> c = corners(patch);
+    if (hint != kNoFace && covers(hint, c)) {
+      reassigned_.push_back({hint, patch});
+      return true;
+    }
     for (std::uint32_t f : candidates_) {
-      if (covers(f, c)) {
+      if (f != hint && covers(f, c)) {
         reassigned_.push_back({f, patch});
+        hint = f;
         return true;
       }
     }
     if (patch.depth == kPatchDepth) return false;
     for (int k = 0; k < 4; ++k) {
-      if (!reassign(part(patch, k))) return false;
+      if (!reassign(part(patch, k), hint)) return false;
     }
     return true;
   }
 
-  // Every point of triangle (a, b, c) within ε of the reference (1-Lipschitz, split in four
-  // where the centroid's margin does not cover the triangle).
-  // `bound` is an upper bound of the distance from the centroid to the reference, when known
-  // (a part's: its whole's distance plus the step between the two centroids).
-  bool near_reference(const Point3& a, const Point3& b, const Point3& c, int depth,
-                      double bound = std::numeric_limits<double>::infinity()) {
-    const Point3 g = {(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0,
-                      (a[2] + b[2] + c[2]) / 3.0};
+  static Point3 centroid(const Point3& a, const Point3& b, const Point3& c) {
+    return {(a[0] + b[0] + c[0]) / 3.0, (a[1] + b[1] + c[1]) / 3.0, (a[2] + b[2] + c[2]) / 3.0};
+  }
+  static double centroid_radius(const Point3& a, const Point3& b, const Point3& c,
+                                const Point3& g) {
     double radius2 = 0.0;
     for (const Point3* p : {&a, &b, &c}) radius2 = std::max(radius2, dot(sub(*p, g), sub(*p, g)));
-    const double radius = std::sqrt(radius2);
-    if (bound + radius <= eps_) return true;
-    // One search up to ε, stopped at the first reference triangle within ε − radius (which
-    // settles it; most tests look at a few cells); otherwise it gives the exact distance.
+    return std::sqrt(radius2);
+  }
+
+  // The centroid test at g (radius: the farthest corner from g): Proof::yes when a reference
+  // triangle lies within ε − radius of g, Proof::no when none lies within ε, else unknown with
+  // the exact distance in *distance. One search up to ε, stopped at the first reference
+  // triangle within ε − radius (most tests look at a few cells).
+  Proof centroid_test(const Point3& g, double radius, double* distance) {
     const double margin = eps_ - radius;
     const double d2 = ref_grid_.nearest_squared(g, ref_stamp_, next_query(), eps_, nullptr,
                                                 margin > 0.0 ? margin * margin : 0.0);
-    if (margin > 0.0 && d2 < margin * margin) return true;
-    if (d2 >= eps2_ || depth == kLipschitzDepth) return false;
-    const double d = std::sqrt(d2);
+    if (margin > 0.0 && d2 < margin * margin) return Proof::yes;
+    if (d2 >= eps2_) return Proof::no;
+    *distance = std::sqrt(d2);
+    return Proof::unknown;
+  }
+
+  // Every point of triangle (a, b, c) within ε of the reference (1-Lipschitz, split in four
+  // where the centroid's margin does not cover the triangle). `bound` is an upper bound of the
+  // distance from the centroid to the reference, when known (a part's: its whole's distance
+  // plus the step between the two centroids); with `exact`, it is that distance, searched.
+  // The four parts' centroids are tested before any part is split further, so a part out of
+  // reach refuses the triangle before the others are proved.
+  bool near_reference(const Point3& a, const Point3& b, const Point3& c, int depth,
+                      double bound = std::numeric_limits<double>::infinity(),
+                      bool exact = false) {
+    const Point3 g = centroid(a, b, c);
+    const double radius = centroid_radius(a, b, c, g);
+    if (bound + radius <= eps_) return true;
+    double d = bound;
+    if (!exact) {
+      const Proof proof = centroid_test(g, radius, &d);
+      if (proof != Proof::unknown) return proof == Proof::yes;
+    }
+    if (depth == kLipschitzDepth) return false;
     const Point3 ab = mid(a, b);
     const Point3 bc = mid(b, c);
     const Point3 ca = mid(c, a);
-    auto part = [&](const Point3& p, const Point3& q, const Point3& r) {
-      const Point3 h = {(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0,
-                        (p[2] + q[2] + r[2]) / 3.0};
-      return near_reference(p, q, r, depth + 1, d + std::sqrt(dot(sub(h, g), sub(h, g))));
-    };
-    return part(a, ab, ca) && part(ab, b, bc) && part(ca, bc, c) && part(ab, bc, ca);
+    const std::array<std::array<Point3, 3>, 4> parts = {{{a, ab, ca}, {ab, b, bc}, {ca, bc, c},
+                                                         {ab, bc, ca}}};
+    std::array<double, 4> open{};  // a part's exact centroid distance; < 0: proved
+    for (std::size_t k = 0; k < 4; ++k) {
+      const auto& [p, q, r] = parts[k];
+      const Point3 h = centroid(p, q, r);
+      const double part_radius = centroid_radius(p, q, r, h);
+      open[k] = -1.0;
+      if (d + std::sqrt(dot(sub(h, g), sub(h, g))) + part_radius <= eps_) continue;
+      const Proof proof = centroid_test(h, part_radius, &open[k]);
+      if (proof == Proof::no) return false;
+      if (proof == Proof::yes) open[k] = -1.0;
+    }
+    for (std::size_t k = 0; k < 4; ++k) {
+      if (open[k] < 0.0) continue;
+      const auto& [p, q, r] = parts[k];
+      if (!near_reference(p, q, r, depth + 1, open[k], true)) return false;
+    }
+    return true;
+  }
+
+  // An upper bound of the distance from surface vertex w to the reference (infinite when it is
+  // ε or more), searched once a vertex (no vertex moves).
+  double vertex_distance(std::uint32_t w) {
+    double& d = vertex_distance_[w];
+    if (d < 0.0) {
+      const double d2 = ref_grid_.nearest_squared(pos_[w], ref_stamp_, next_query(), eps_);
+      d = d2 < eps2_ ? std::sqrt(d2) : std::numeric_limits<double>::infinity();
+    }
+    return d;
+  }
+
+  // Every point of triangle abc within ε of the reference by its corners' distances
+  // (upper bounds, `d`) and its cover radius, halving it at its longest side's midpoint
+  // (searched) where they do not suffice, down to kBisectDepth levels.
+  // Proof::no when a searched midpoint lies ε or more from the reference.
+  Proof corners_prove(const Point3& a, const Point3& b, const Point3& c,
+                      const std::array<double, 3>& d, int depth) {
+    if (std::max({d[0], d[1], d[2]}) + cover_radius(a, b, c) * (1.0 + 1e-12) <= eps_) {
+      return Proof::yes;
+    }
+    if (depth == kBisectDepth) return Proof::unknown;
+    const double la2 = dot(sub(b, c), sub(b, c));
+    const double lb2 = dot(sub(c, a), sub(c, a));
+    const double lc2 = dot(sub(a, b), sub(a, b));
+    // Rotated so that the longest side is bc (strictly longer than bc: no rotation repeats).
+    if (lb2 > la2 && lb2 >= lc2) return corners_prove(b, c, a, {d[1], d[2], d[0]}, depth);
+    if (lc2 > la2 && lc2 > lb2) return corners_prove(c, a, b, {d[2], d[0], d[1]}, depth);
+    const Point3 m = mid(b, c);
+    // An upper bound is enough: the search stops at the first triangle within ε / 4.
+    const double d2 = ref_grid_.nearest_squared(m, ref_stamp_, next_query(), eps_, nullptr,
+                                                eps2_ / 16.0);
+    if (d2 >= eps2_) return Proof::no;  // none below ε/4 found: d2 is the exact distance
+    const double dm = std::sqrt(d2);
+    const Proof left = corners_prove(a, b, m, {d[0], d[1], dm}, depth + 1);
+    if (left == Proof::no) return Proof::no;
+    const Proof right = corners_prove(a, m, c, {d[0], dm, d[2]}, depth + 1);
+    if (right == Proof::no) return Proof::no;
+    return left == Proof::yes && right == Proof::yes ? Proof::yes : Proof::unknown;
+  }
+
+  // Every point of surface triangle t within ε of the reference: first without a search, from
+  // its corners' distances (1-Lipschitz: a point p of t is within d(w) + |p − w| of the
+  // reference for each corner w, and within cover_radius of its nearest corner), else by
+  // near_reference.
+  bool triangle_near_reference(const Triangle& t) {
+    const Point3& a = pos_[t[0]];
+    const Point3& b = pos_[t[1]];
+    const Point3& c = pos_[t[2]];
+    const std::array<double, 3> d = {vertex_distance(t[0]), vertex_distance(t[1]),
+                                     vertex_distance(t[2])};
+    if (!std::isfinite(std::max({d[0], d[1], d[2]}))) return false;  // a corner ε or more away
+    const Proof proof = corners_prove(a, b, c, d, 0);
+    if (proof != Proof::unknown) return proof == Proof::yes;
+    return near_reference(a, b, c, 0);
   }
 
   void push_heap(std::uint32_t from, std::uint32_t to) {
-    const std::size_t before = heap_.size();
-    push(from, to);
-    if (heap_.size() > before) std::push_heap(heap_.begin(), heap_.end(), std::greater<>{});
+    if (held_[from]) return;
+    heap_.push(candidate(from, to));
   }
 
   bool stale(const Candidate& c) const {
@@ -422,9 +684,13 @@ class Collapser {
   // Appends the candidate u → v (a heap only once run() has made it one).
   void push(std::uint32_t from, std::uint32_t to) {
     if (held_[from]) return;
+    heap_.append(candidate(from, to));
+  }
+
+  Candidate candidate(std::uint32_t from, std::uint32_t to) const {
     Quadric q = quadric_[from];
     q += quadric_[to];
-    heap_.push_back({std::max(q.at(pos_[to]), 0.0), from, to, version_[from], version_[to]});
+    return {std::max(q.at(pos_[to]), 0.0), from, to, version_[from], version_[to]};
   }
 
   // Neighbours of v (each once; marks them in mark_ with a new stamp).
@@ -441,23 +707,31 @@ class Collapser {
     }
   }
 
+  // After a collapse onto v: the edges at v anew (their cost changed: v's quadric grew), and
+  // the candidates refused from its neighbours (their triangles changed) tried again.
   void requeue_around(std::uint32_t v) {
+    ++version_[v];
+    refused_from_[v].clear();
     std::vector<std::uint32_t>& ring = ring_;
     neighbours(v, ring);
-    ring.push_back(v);
-    for (auto w : ring) ++version_[w];
-    std::vector<std::uint32_t>& around = around_;
-    // Each edge once: an edge between two ring vertices from its smaller end.
-    ++ring_stamp_;
-    for (auto w : ring) ring_mark_[w] = ring_stamp_;
     for (auto w : ring) {
-      neighbours(w, around);
-      for (auto x : around) {
-        if (ring_mark_[x] == ring_stamp_ && x < w) continue;
-        push_heap(w, x);
-        push_heap(x, w);
-      }
+      push_heap(v, w);
+      push_heap(w, v);
     }
+    for (auto w : ring) {
+      for (auto x : refused_from_[w]) {
+        if (x != v && !faces_of_[x].empty() && adjacent(w, x)) push_heap(w, x);
+      }
+      refused_from_[w].clear();
+    }
+  }
+
+  bool adjacent(std::uint32_t w, std::uint32_t x) const {
+    for (std::uint32_t f : faces_of_[w]) {
+      const Triangle& t = s_.triangles[f];
+      if (t[0] == x || t[1] == x || t[2] == x) return true;
+    }
+    return false;
   }
 
   bool collapse(std::uint32_t u, std::uint32_t v) {
@@ -515,7 +789,7 @@ class Collapser {
       new_tri_.push_back(t);
     }
     for (const Triangle& t : new_tri_) {
-      if (!near_reference(pos_[t[0]], pos_[t[1]], pos_[t[2]], 0)) {
+      if (!triangle_near_reference(t)) {
         return refuse(stats_.refused_distance);
       }
     }
@@ -535,18 +809,33 @@ class Collapser {
     for (std::uint32_t f : changed_) face_mark_[f] = face_stamp_;
     bool crossing = false;
     for (std::size_t k = 0; k < changed_.size() && !crossing; ++k) {
-      const std::uint32_t f = changed_[k];
       for (std::size_t j = k + 1; j < changed_.size() && !crossing; ++j) {
-        crossing = triangles_intersect(s_, f, changed_[j]);
+        crossing = triangles_intersect(s_, changed_[k], changed_[j]);
       }
-      ++visit_stamp_;
-      const Box new_box = box_of(new_tri_[k]);
-      grid_.visit(new_box, [&](std::uint32_t g) {
+    }
+    // The other live triangles, from one grid visit over the new triangles' boxes together.
+    new_boxes_.clear();
+    planes_.clear();
+    Box all = box_of(new_tri_[0]);
+    for (const Triangle& t : new_tri_) {
+      new_boxes_.push_back(box_of(t));
+      planes_.emplace_back(s_, t);
+      for (int a = 0; a < 3; ++a) {
+        all.lo[a] = std::min(all.lo[a], new_boxes_.back().lo[a]);
+        all.hi[a] = std::max(all.hi[a], new_boxes_.back().hi[a]);
+      }
+    }
+    ++visit_stamp_;
+    if (!crossing) {
+      grid_.visit(all, [&](std::uint32_t g, const Box& box) {
         if (crossing || !alive_[g] || face_mark_[g] == face_stamp_) return;
         if (visited_[g] == visit_stamp_) return;
         visited_[g] = visit_stamp_;
-        if (!boxes_meet(new_box, box_of(s_.triangles[g]))) return;
-        crossing = triangles_intersect(s_, f, g);
+        for (std::size_t k = 0; k < changed_.size() && !crossing; ++k) {
+          if (!boxes_meet(new_boxes_[k], box)) continue;
+          if (planes_[k].separates(s_, new_tri_[k], s_.triangles[g])) continue;
+          crossing = triangles_intersect(s_, changed_[k], g);
+        }
       });
     }
     if (crossing) {
@@ -560,9 +849,11 @@ class Collapser {
       if (f != on_edge[0] && f != on_edge[1]) candidates_.push_back(f);
     }
     reassigned_.clear();
+    // A changed triangle's parts first to its new shape (most stay covered by it).
     auto reassign_all = [&](std::uint32_t from) {
+      std::uint32_t hint = alive_[from] ? from : kNoFace;
       for (const Patch& patch : refs_of_[from]) {
-        if (!reassign(patch)) return false;
+        if (!reassign(patch, hint)) return false;
       }
       return true;
     };
@@ -618,28 +909,30 @@ class Collapser {
   std::vector<std::uint8_t> held_;
   std::vector<std::uint32_t> mark_;
   std::uint32_t mark_stamp_ = 0;
-  std::vector<std::uint32_t> ring_mark_;
-  std::uint32_t ring_stamp_ = 0;
   std::vector<std::uint8_t> alive_;
   std::vector<std::uint32_t> face_mark_;
   std::uint32_t face_stamp_ = 0;
   std::vector<std::uint32_t> visited_;
   std::uint32_t visit_stamp_ = 0;
   std::vector<std::vector<Patch>> refs_of_;
+  std::vector<std::vector<std::uint32_t>> refused_from_;  // per vertex: refused candidates' ends
   std::vector<std::uint32_t> ref_stamp_;
+  std::vector<double> vertex_distance_;  // < 0: not searched yet
   std::uint32_t query_ = 0;
   std::size_t live_ = 0;
+  std::size_t grid_live_ = 0;  // live triangles when grid_ was made
   CollapseStats stats_;
-  std::vector<Candidate> heap_;  // candidates, smallest cost on top (std::greater)
+  CandidateHeap heap_;
   // Scratch of collapse().
   std::vector<std::uint32_t> changed_;
   std::vector<Triangle> new_tri_;
   std::vector<Triangle> old_tri_;
   std::vector<std::uint32_t> ring_u_;
   std::vector<std::uint32_t> ring_;
-  std::vector<std::uint32_t> around_;
   std::vector<std::uint32_t> ring_v_;
   std::vector<std::uint32_t> candidates_;
+  std::vector<Box> new_boxes_;
+  std::vector<PlaneSide> planes_;
   std::vector<std::pair<std::uint32_t, Patch>> reassigned_;
 };
 

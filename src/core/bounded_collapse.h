@@ -11,14 +11,20 @@
 //    2-manifold stays one, with the same Euler characteristic and components;
 //  - no crossing: every new triangle is tested with the exact predicates of
 //    self_intersections.h against every live triangle whose box its box meets (a dynamic
-//    uniform grid) and against the other new triangles;
+//    hashed grid) and against the other new triangles; a pair is passed over without it only
+//    when the same statically filtered orientation proves the other triangle's own corners
+//    strictly on one side of the new triangle's plane (then they cannot count as crossing);
 //  - shape: no new triangle has an angle above 170° or below 1° (count_extreme_angles'
 //    caps and needles, so their counts never grow), and none turns more than 78° away from
 //    the triangle it replaces;
-//  - surface → reference within ε: for a new triangle T, dist(c, R) + max |p_i − c| ≤ ε at
-//    its centroid c proves every point of T within ε of the reference R (the distance to a
-//    set is 1-Lipschitz); where it does not, T is split in four and each part is tried, down
-//    to kLipschitzDepth levels, else the collapse is refused;
+//  - surface → reference within ε: for a new triangle T with corners p_i, max dist(p_i, R) +
+//    ρ(T) ≤ ε, ρ(T) the largest distance from a point of T to its nearest corner, proves every
+//    point of T within ε of the reference R (the distance to a set is 1-Lipschitz); where it
+//    does not, T is halved at its longest side's midpoint (its distance searched) and the
+//    halves tried the same way, down to kBisectDepth levels; else dist(c, R) + max |p_i − c|
+//    ≤ ε at its centroid c proves it, T split in four where it does not and each part tried
+//    by the centroid test, down to kLipschitzDepth levels. A searched point ε or more away
+//    refuses the collapse at once, as does failing every test;
 //  - reference → surface within ε: every reference triangle is assigned one triangle of the
 //    surface that is within ε of its three corners, hence of all of it (the distance to one
 //    triangle is a convex function); where none is, its four parts of a midpoint split are
@@ -30,8 +36,8 @@
 // to rounding (far below 1e-6 of the coordinates).
 //
 // Order: the Garland–Heckbert quadric cost of moving u onto v (the planes of the input's
-// triangles around both, area-weighted), smallest first; a candidate refused now is tried
-// again when a collapse near it changes its neighbourhood.
+// triangles around both, area-weighted), smallest first; a candidate u → w refused now is
+// tried again after a collapse onto a neighbour of u (which changes u's triangles).
 #pragma once
 
 #include <cstddef>

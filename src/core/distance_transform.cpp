@@ -17,6 +17,12 @@ namespace detail {
 // into x, g) and its boundaries z.
 void distance_transform_line(float* f, std::size_t count, std::ptrdiff_t step, double h,
                              bool border_seeds, std::vector<double>& scratch) {
+  distance_transform_line(f, count, step, h, 0, border_seeds, border_seeds, scratch);
+}
+
+void distance_transform_line(float* f, std::size_t count, std::ptrdiff_t step, double h,
+                             std::size_t offset, bool seed_before, bool seed_after,
+                             std::vector<double>& scratch) {
   const std::size_t capacity = count + 2;
   scratch.resize(4 * capacity + 1);
   double* x = scratch.data();
@@ -29,12 +35,14 @@ void distance_transform_line(float* f, std::size_t count, std::ptrdiff_t step, d
     g[n] = value;
     ++n;
   };
-  if (border_seeds) push(-h, 0.0);
+  // Positions on the whole line (offset + i), so that a part of it computes what the whole
+  // line computes, bit for bit, wherever it finds the same nearest parabola.
+  if (seed_before) push((static_cast<double>(offset) - 1.0) * h, 0.0);
   for (std::size_t i = 0; i < count; ++i) {
     const float value = f[static_cast<std::ptrdiff_t>(i) * step];
-    if (std::isfinite(value)) push(static_cast<double>(i) * h, value);
+    if (std::isfinite(value)) push(static_cast<double>(offset + i) * h, value);
   }
-  if (border_seeds) push(static_cast<double>(count) * h, 0.0);
+  if (seed_after) push(static_cast<double>(offset + count) * h, 0.0);
   if (n == 0) return;  // no finite sample: everything stays +infinity
 
   constexpr double kInfinity = std::numeric_limits<double>::infinity();
@@ -59,7 +67,7 @@ void distance_transform_line(float* f, std::size_t count, std::ptrdiff_t step, d
   }
   k = 0;
   for (std::size_t i = 0; i < count; ++i) {
-    const double position = static_cast<double>(i) * h;
+    const double position = static_cast<double>(offset + i) * h;
     while (z[k + 1] < position) ++k;
     const auto r = static_cast<std::size_t>(v[k]);
     const double d = position - x[r];
@@ -72,12 +80,20 @@ void distance_transform_line(float* f, std::size_t count, std::ptrdiff_t step, d
 void squared_distance_transform(std::span<float> f, const VolumeSize& size,
                                 const std::array<double, 3>& spacing, bool seeds_beyond_border,
                                 unsigned threads) {
-  assert(static_cast<std::int64_t>(f.size()) == size.voxels());
+  squared_distance_transform_slab(f, size, 0, size.nz, spacing, seeds_beyond_border, threads);
+}
+
+void squared_distance_transform_slab(std::span<float> f, const VolumeSize& slab,
+                                     std::int64_t first, std::int64_t total_slices,
+                                     const std::array<double, 3>& spacing,
+                                     bool seeds_beyond_border, unsigned threads) {
+  assert(static_cast<std::int64_t>(f.size()) == slab.voxels());
+  assert(first >= 0 && first + slab.nz <= total_slices);
   assert(spacing[0] > 0 && spacing[1] > 0 && spacing[2] > 0);
-  if (size.voxels() == 0) return;
+  if (slab.voxels() == 0) return;
   const unsigned workers = detail::resolve_threads(threads);
   std::vector<std::vector<double>> scratch(workers);
-  const std::int64_t nx = size.nx, ny = size.ny, nz = size.nz;
+  const std::int64_t nx = slab.nx, ny = slab.ny, nz = slab.nz;
   // x lines: one per (j, k); y lines: one per (i, k), run slice by slice; z lines: one per (i, j).
   detail::run_parallel(static_cast<std::size_t>(ny * nz), workers, [&](std::size_t line, unsigned w) {
     detail::distance_transform_line(f.data() + line * static_cast<std::size_t>(nx),
@@ -92,12 +108,16 @@ void squared_distance_transform(std::span<float> f, const VolumeSize& size,
                                       seeds_beyond_border, scratch[w]);
     }
   });
+  // Along z the slab's own samples, and the grid's end seeds where the slab reaches an end.
+  const bool seed_before = seeds_beyond_border && first == 0;
+  const bool seed_after = seeds_beyond_border && first + nz == total_slices;
   detail::run_parallel(static_cast<std::size_t>(ny), workers, [&](std::size_t j, unsigned w) {
     for (std::int64_t i = 0; i < nx; ++i) {
       detail::distance_transform_line(f.data() + j * static_cast<std::size_t>(nx) +
                                           static_cast<std::size_t>(i),
                                       static_cast<std::size_t>(nz), nx * ny, spacing[2],
-                                      seeds_beyond_border, scratch[w]);
+                                      static_cast<std::size_t>(first), seed_before, seed_after,
+                                      scratch[w]);
     }
   });
 }

@@ -8,6 +8,11 @@
 #include <span>
 #include <vector>
 
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
+#endif
+
 #include "core/distance_transform.h"
 #include "core/marching_cubes.h"
 #include "core/mesh_distance.h"
@@ -120,30 +125,177 @@ bool point_inside(const TriangleMesh& mesh, const Point& point) {
 
 }  // namespace detail
 
+namespace {
+
+// Returns the whole pages of [begin, end) to the OS (they read as zeros afterwards): slices of
+// the field no later piece reads. Linux: madvise(MADV_DONTNEED); elsewhere nothing.
+void release_pages(const float* begin, const float* end) {
+#if defined(__linux__) && defined(MADV_DONTNEED)
+  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const std::uintptr_t from = (reinterpret_cast<std::uintptr_t>(begin) + page - 1) & ~(page - 1);
+  const std::uintptr_t to = reinterpret_cast<std::uintptr_t>(end) & ~(page - 1);
+  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
+#else
+  (void)begin;
+  (void)end;
+#endif
+}
+
+// What step 3 needs besides the distances.
+struct Band {
+  double lo = 0, hi = 0;            // D range measured exactly
+  double sigma_min = 1, diagonal = 0, deviation = 0;  // out of it, F = σ_min·D − r − m, >= 0
+  double search = 0;                // point_to_mesh_distances' cap
+  const IndexToPatient* geometry = nullptr;
+  const TriangleMesh* outer = nullptr;
+  unsigned threads = 0;
+};
+
+// F on slices [k0, k1) of a grid of size `size`, from their squared distances `d2` (slice k0
+// first), written to `out` (slice k0 first; may be d2). Returns the band samples' count.
+std::size_t field_slices(const float* d2, float* out, std::int64_t k0, std::int64_t k1,
+                         const VolumeSize& size, const Band& band) {
+  std::vector<std::uint32_t> band_index;        // sample index from slice k0
+  std::vector<std::array<float, 3>> positions;  // band samples' centres, patient mm
+  std::size_t v = 0;
+  for (std::int64_t k = k0; k < k1; ++k) {
+    for (std::int64_t j = 0; j < size.ny; ++j) {
+      for (std::int64_t i = 0; i < size.nx; ++i, ++v) {
+        const double d = std::sqrt(static_cast<double>(d2[v]));
+        // Outside samples (D = 0) stay 0 whatever the band: they are below the level.
+        if (d > 0 && d >= band.lo && d <= band.hi) {
+          band_index.push_back(static_cast<std::uint32_t>(v));
+          const Vec3 p = band.geometry->apply(double(i), double(j), double(k));
+          positions.push_back(
+              {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])});
+        } else {
+          out[v] = static_cast<float>(
+              std::max(0.0, band.sigma_min * d - band.diagonal - band.deviation));
+        }
+      }
+    }
+  }
+  // Exact distances of the band samples to the outer surface. A sample farther than the
+  // band's top from the outer surface is above the level whatever its exact distance: the
+  // search stops there.
+  const std::vector<float> exact =
+      point_to_mesh_distances(positions, *band.outer, band.threads, band.search);
+  for (std::size_t b = 0; b < band_index.size(); ++b) out[band_index[b]] = exact[b];
+  return band_index.size();
+}
+
+// Steps 1–4 over the whole volume at once (a float field of every sample).
+TriangleMesh whole_volume_wall(const Volume& field, float iso, const InnerWallOptions& options,
+                               const Band& band, const ExtractOptions& extract, double level,
+                               InnerWallStats& s) {
+  const auto& size = field.size();
+  const IndexToPatient& geometry = field.geometry();
+  const std::array<double, 3> spacing = {geometry.spacing(0), geometry.spacing(1),
+                                         geometry.spacing(2)};
+  // 1–2. D², in the field's storage: seeds (0) at the outside samples.
+  Volume distance(size, geometry);
+  auto& d = distance.samples();
+  constexpr float kFar = std::numeric_limits<float>::infinity();
+  field.visit([&](const auto* values) {
+    for (std::size_t v = 0; v < d.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
+  });
+  if (options.fill_enclosed) fill_enclosed_outside(d, size);
+  squared_distance_transform(d, size, spacing, /*seeds_beyond_border=*/true, options.threads);
+  // 3. F, in place.
+  s.band_samples = field_slices(d.data(), d.data(), 0, size.nz, size, band);
+  // 4.
+  return extract_isosurface(distance, static_cast<float>(level), extract);
+}
+
+// Steps 1–4 in slabs of cube layers: each slab's distances from a scratch of its slices and a
+// halo (exact up to `reach` mm), F written into a field whose slices are touched only while a
+// piece reads them (its pages are returned afterwards), the pieces stitched as
+// extract_isosurface stitches its slabs. The same bytes as whole_volume_wall: every value a
+// piece reads that can differ (a deeper sample's lower bound) is above the level and more
+// than a cube and a gradient step from any crossing.
+TriangleMesh slab_wall(const Volume& field, float iso, const InnerWallOptions& options,
+                       const Band& band, const ExtractOptions& extract, double level,
+                       double reach, InnerWallStats& s) {
+  const auto& size = field.size();
+  const IndexToPatient& geometry = field.geometry();
+  const std::array<double, 3> spacing = {geometry.spacing(0), geometry.spacing(1),
+                                         geometry.spacing(2)};
+  // Every sample is written before a piece reads it; pages untouched cost no memory.
+  Volume distance = Volume::uninitialized(size, geometry);
+  const auto level_f = static_cast<float>(level);
+  const std::int64_t layers = detail::cube_layer_count(distance, level_f, extract);
+  TriangleMesh inner;
+  if (layers == 0) return inner;
+  const std::int64_t plane = size.nx * size.ny;
+  const auto halo = static_cast<std::int64_t>(std::ceil(reach / spacing[2])) + 1;
+  const std::int64_t step = std::max<std::int64_t>(1, options.slab_layers);
+  std::vector<float> d2;
+  std::int64_t computed = 0;  // F holds slices [released, computed)
+  std::int64_t released = 0;
+  std::size_t below = 0;      // the previous piece's top slice vertices, in `inner`
+  for (std::int64_t first = 0; first < layers; first += step) {
+    const std::int64_t last = std::min(layers, first + step);
+    // Layers [first, last) lie between padded slices first and last, volume slices first − 1
+    // to last − 1; gradients read one more on each side (two kept for margin).
+    const std::int64_t need = std::min(size.nz, last + 2);
+    if (need > computed) {
+      const std::int64_t c0 = std::max<std::int64_t>(0, computed - halo);
+      const std::int64_t c1 = std::min(size.nz, need + halo);
+      d2.resize(static_cast<std::size_t>((c1 - c0) * plane));
+      constexpr float kFar = std::numeric_limits<float>::infinity();
+      field.visit([&](const auto* values) {
+        const auto* from = values + c0 * plane;
+        for (std::size_t v = 0; v < d2.size(); ++v) d2[v] = from[v] >= iso ? kFar : 0.0f;
+      });
+      squared_distance_transform_slab(d2, {size.nx, size.ny, c1 - c0}, c0, size.nz, spacing,
+                                      /*seeds_beyond_border=*/true, options.threads);
+      s.band_samples += field_slices(d2.data() + (computed - c0) * plane,
+                                     distance.slice(computed), computed, need, size, band);
+      computed = need;
+    }
+    detail::SurfacePiece piece = detail::extract_layers(distance, level_f, extract, first, last);
+    // Stitch: the piece's first shared_vertices vertices are the previous piece's top slice.
+    const std::size_t shared = piece.shared_vertices;
+    const std::size_t base = inner.positions.size();
+    inner.positions.insert(inner.positions.end(),
+                           piece.mesh.positions.begin() + static_cast<std::ptrdiff_t>(shared),
+                           piece.mesh.positions.end());
+    if (extract.vertex_normals) {
+      inner.normals.insert(inner.normals.end(),
+                           piece.mesh.normals.begin() + static_cast<std::ptrdiff_t>(shared),
+                           piece.mesh.normals.end());
+    }
+    for (const auto& t : piece.mesh.triangles) {
+      std::array<std::uint32_t, 3> triangle{};
+      for (int c = 0; c < 3; ++c) {
+        triangle[c] = static_cast<std::uint32_t>(t[c] < shared ? below + t[c] : base - shared + t[c]);
+      }
+      inner.triangles.push_back(triangle);
+    }
+    below = base + piece.top_first - shared;
+    // Slices below last − 3 are read by no later piece.
+    const std::int64_t keep = std::max<std::int64_t>(released, std::min(computed, last - 3));
+    if (keep > released) {
+      release_pages(distance.slice(released), distance.slice(0) + keep * plane);
+      released = keep;
+    }
+  }
+  return inner;
+}
+
+}  // namespace
+
 TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMesh& outer,
                                 const InnerWallOptions& options, InnerWallStats* stats) {
   assert(options.wall_mm > 0);
   InnerWallStats local;
   InnerWallStats& s = stats != nullptr ? *stats : local;
   s = {};
-  const auto& size = field.size();
   const IndexToPatient& geometry = field.geometry();
   const std::array<double, 3> spacing = {geometry.spacing(0), geometry.spacing(1),
                                          geometry.spacing(2)};
 
-  // 1–2. D², in the field's storage: seeds (0) at the outside samples.
-  Volume distance(size, geometry);
-  {
-    auto& d = distance.samples();
-    constexpr float kFar = std::numeric_limits<float>::infinity();
-    field.visit([&](const auto* values) {
-      for (std::size_t v = 0; v < d.size(); ++v) d[v] = values[v] >= iso ? kFar : 0.0f;
-    });
-    if (options.fill_enclosed) fill_enclosed_outside(d, size);
-    squared_distance_transform(d, size, spacing, /*seeds_beyond_border=*/true, options.threads);
-  }
-
-  // 3. The band and F.
+  // The band (step 3).
   // Not a structured binding: Clang 14 (the fuzz build) cannot capture one in a lambda.
   const auto stretch = stretch_bounds(geometry);
   const double sigma_min = stretch[0], sigma_max = stretch[1];
@@ -157,43 +309,17 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
                                              spacing[2] * spacing[2]) *
                                        sigma_max);
   const double wall = options.wall_mm, m = options.outer_deviation_mm;
-  const double band_lo = (wall - m) / sigma_max;                 // below: F < wall surely
-  const double band_hi =
-      (wall + diagonal * diagonal / (8 * wall) + diagonal + m) / sigma_min;  // above: F > level
+  Band band;
+  band.lo = (wall - m) / sigma_max;                                           // below: F < wall surely
+  band.hi = (wall + diagonal * diagonal / (8 * wall) + diagonal + m) / sigma_min;  // above: F > level
   // Out of the band, F's lower bound σ_min·D − r − m (at least 0).
-  auto lower_bound = [&](double d) { return std::max(0.0, sigma_min * d - diagonal - m); };
-
-  std::vector<std::uint32_t> band_index;  // voxel index of each band sample
-  TriangleMesh points;                    // band samples' centres, patient mm
-  auto& f = distance.samples();
-  for (std::int64_t k = 0; k < size.nz; ++k) {
-    for (std::int64_t j = 0; j < size.ny; ++j) {
-      for (std::int64_t i = 0; i < size.nx; ++i) {
-        const auto v = static_cast<std::size_t>(i + size.nx * (j + size.ny * k));
-        const double d = std::sqrt(static_cast<double>(f[v]));
-        // Outside samples (D = 0) stay 0 whatever the band: they are below the level.
-        if (d > 0 && d >= band_lo && d <= band_hi) {
-          band_index.push_back(static_cast<std::uint32_t>(v));
-          const Vec3 p = geometry.apply(double(i), double(j), double(k));
-          points.positions.push_back(
-              {static_cast<float>(p[0]), static_cast<float>(p[1]), static_cast<float>(p[2])});
-        } else {
-          f[v] = static_cast<float>(lower_bound(d));
-        }
-      }
-    }
-  }
-  s.band_samples = band_index.size();
-  // Exact distances of the band samples to the outer surface.
-  {
-    // A sample farther than the band's top from the outer surface is above the level
-    // whatever its exact distance: the search stops there.
-    const std::vector<float> exact =
-        point_to_mesh_distances(points.positions, outer, options.threads, band_hi * sigma_max + diagonal);
-    for (std::size_t b = 0; b < band_index.size(); ++b) f[band_index[b]] = exact[b];
-    points = {};
-    band_index = {};
-  }
+  band.sigma_min = sigma_min;
+  band.diagonal = diagonal;
+  band.deviation = m;
+  band.search = band.hi * sigma_max + diagonal;
+  band.geometry = &geometry;
+  band.outer = &outer;
+  band.threads = options.threads;
 
   // 4. The wall: samples with F >= wall are inside the field's iso-surface, which is the
   // hollow's boundary wound outward from the hollow; reversed, it faces into it.
@@ -205,8 +331,14 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   // distance to a convex bend is convex) errs by up to about r² / (8 · wall), the chord
   // error over the cube's diagonal r, toward the outer wall.
   const double level = wall + diagonal * diagonal / (8 * wall);
-  TriangleMesh inner = extract_isosurface(distance, static_cast<float>(level), extract);
-  distance = {};
+  // A value that can differ between the slabs' distances and the whole volume's is deeper
+  // than `reach` (D, mm): above the band, and more than a cube diagonal (a crossing cube's
+  // corners, its faces' decider) plus a gradient step from any sample below the level.
+  const double reach = band.hi + 4 * diagonal + std::max({spacing[0], spacing[1], spacing[2]});
+  TriangleMesh inner =
+      options.fill_enclosed || options.slab_layers == 0
+          ? whole_volume_wall(field, iso, options, band, extract, level, s)
+          : slab_wall(field, iso, options, band, extract, level, reach, s);
   if (inner.empty()) return inner;
   to_patient(inner, geometry);
   for (auto& t : inner.triangles) std::swap(t[1], t[2]);

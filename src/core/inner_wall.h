@@ -32,13 +32,20 @@
 // Band: samples with (wall_mm − m)/σ_max <= D <= (wall_mm + r + m)/σ_min, where r is the voxel
 // diagonal (the farthest a marching-cubes surface point is from an outside voxel centre), m =
 // outer_deviation_mm and σ bound the stretch of a sheared grid (1 for an orthogonal one).
-// Memory: 4 bytes a voxel (the field, in which D is computed; freed on return), 1 + a stack for
-// fill_enclosed, + 16 bytes a band sample + the inner mesh. Exact distances are searched up
-// to the band's top only. Cost: the distance
-// transform (three passes over the volume) + about 1 µs per band sample.
+// Memory, in slabs (InnerWallOptions::slab_layers, the default): a float scratch of a slab's
+// slices and a halo of ceil(reach / slice step) + 1 slices on each side, where reach is the
+// band's top + 4 cube diagonals + a step (distances are exact up to it, and no value the
+// extraction reads depends on deeper ones), + F on the slab's slices only (its pages are
+// returned once extracted), + 20 bytes a band sample of a slab + the inner mesh — bounded in
+// the slice count. With fill_enclosed (or slab_layers 0): 4 bytes a voxel (the whole field),
+// 1 + a stack for fill_enclosed, + 20 bytes a band sample + the inner mesh. Exact distances
+// are searched up to the band's top only. Cost: the distance transform (three passes over
+// the volume, the halo's slices again per slab) + about 1 µs per band sample; in slabs the
+// wall's extraction runs on one thread.
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 
 #include "core/mesh.h"
 #include "core/volume.h"
@@ -54,6 +61,10 @@ struct InnerWallOptions {
   // The outer surface's cavities were filled: outside samples not joined to the volume's
   // border (6-connected) count as inside, so the air pockets inside get no wall.
   bool fill_enclosed = false;
+  // Cube layers per slab: the distances and F are computed, and the wall extracted, slab by
+  // slab (0: the whole volume at once; fill_enclosed also works on the whole volume, whose
+  // outside connectivity it needs). The result is the same bytes for every value.
+  std::int64_t slab_layers = 16;
 };
 
 struct InnerWallStats {

@@ -202,14 +202,18 @@ void classify_samples(const float* values, std::size_t n, float iso, std::uint8_
   std::transform(values, values + n, inside, [iso](float f) { return std::uint8_t{f >= iso}; });
 }
 
-// The same for int16 samples: v >= iso exactly when v >= ⌈iso⌉ (v an integer), compared in
-// integers so that the loop vectorises 16 samples a step.
+// The same for int16 samples: v >= iso exactly when v >= ⌈iso⌉ (v an integer), compared as
+// int16 so that the loop vectorises eight samples a step or more (none is inside when ⌈iso⌉
+// is beyond int16).
 void classify_samples(const std::int16_t* values, std::size_t n, float iso,
                       std::uint8_t* inside) {
   const std::int32_t threshold = int16_threshold(iso);
-  std::transform(values, values + n, inside, [threshold](std::int16_t v) {
-    return std::uint8_t{std::int32_t{v} >= threshold};
-  });
+  if (threshold > std::numeric_limits<std::int16_t>::max()) {
+    std::fill_n(inside, n, std::uint8_t{0});
+    return;
+  }
+  const auto t = static_cast<std::int16_t>(threshold);
+  std::transform(values, values + n, inside, [t](std::int16_t v) { return std::uint8_t{v >= t}; });
 }
 
 // Positions i < n where a[i] != b[i] (inside flags, 0 or 1): a plain loop the compiler
@@ -302,7 +306,7 @@ class Extractor {
 
   // Extracts layers [first, last). When first > 0 the vertices of slice `first` belong to the
   // slab below: they get the local ids 0..shared_vertices_ − 1 and are not part of the output.
-  void run(Index first, Index last) {
+  void run(Index first, Index last, double expected_vertices = -1.0) {
     const std::size_t n = static_cast<std::size_t>(width_ * height_);
     Slice lower;
     Slice upper;
@@ -311,7 +315,7 @@ class Extractor {
     z_vertex_.resize(n);
     codes_.resize(static_cast<std::size_t>(width_));
 
-    reserve_outputs(first, last);
+    reserve_outputs(first, last, expected_vertices);
     load_slice(first, lower);
     add_slice_vertices(first, lower);
     shared_vertices_ = first > 0 ? mesh_.positions.size() : 0;
@@ -346,7 +350,26 @@ class Extractor {
   // vertex. What the sample misses, the usual doubling makes up; what it overestimates costs
   // address space, not memory (pages are touched only when written). Sampling classifies about
   // a quarter of the slices again (`perf`: 1–2 % of the extraction time).
-  void reserve_outputs(Index first, Index last) {
+  // With an estimate (expected >= 0) the sampling is skipped.
+  void reserve_outputs(Index first, Index last, double expected) {
+    const auto reserve = [](auto& v, double count) {
+      try {
+        v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
+      } catch (const std::bad_alloc&) {
+      } catch (const std::length_error&) {
+      }
+    };
+    const auto reserve_all = [&](double vertices) {
+      reserve(mesh_.positions, vertices);
+      if (defer_normals_) reserve(vertex_edges_, vertices);
+      if (normals_) reserve(mesh_.normals, vertices);
+      reserve(mesh_.triangles, 2.0 * vertices);
+      if (options_.cubes != nullptr) reserve(cubes_, vertices);
+    };
+    if (expected >= 0.0) {
+      reserve_all(expected);
+      return;
+    }
     constexpr Index kSampleStride = 8;
     const VolumeSize& s = volume_.size();
     const auto n = static_cast<std::size_t>(s.nx * s.ny);
@@ -385,18 +408,7 @@ class Extractor {
     }
     // A sample can overestimate (a dense sampled layer among sparse ones, by up to
     // kSampleStride×): if the address space is refused, the outputs grow as before.
-    const auto reserve = [](auto& v, double count) {
-      try {
-        v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
-      } catch (const std::bad_alloc&) {
-      } catch (const std::length_error&) {
-      }
-    };
-    reserve(mesh_.positions, vertices);
-    if (defer_normals_) reserve(vertex_edges_, vertices);
-    if (normals_) reserve(mesh_.normals, vertices);
-    reserve(mesh_.triangles, 2.0 * vertices);
-    if (options_.cubes != nullptr) reserve(cubes_, vertices);
+    reserve_all(vertices);
   }
 
   // Pass 1: padded copy of slice pz (padded index), inside bytes, row trims.
@@ -409,23 +421,34 @@ class Extractor {
         std::fill_n(slice.values.end() - width_, width_, kPadding);
       }
       // int16 samples become the floats of the same integers here; everything after reads
-      // these floats, so both storages give the same surface bit for bit.
+      // these floats, so both storages give the same surface bit for bit. The samples are
+      // classified where they are stored (int16 ones in int16, twice as many a vector step).
+      const std::uint8_t padding_inside = kPadding >= iso_ ? 1 : 0;
+      if (pad_ != 0) {
+        std::fill_n(slice.inside.begin(), width_, padding_inside);
+        std::fill_n(slice.inside.end() - width_, width_, padding_inside);
+      }
       volume_.visit([&](const auto* all) {
         const auto* samples = all + s.nx * s.ny * k;
         for (Index j = 0; j < s.ny; ++j) {
           float* row = slice.values.data() + (j + pad_) * width_;
-          if (pad_ != 0) row[0] = row[width_ - 1] = kPadding;
+          std::uint8_t* in = slice.inside.data() + (j + pad_) * width_;
+          if (pad_ != 0) {
+            row[0] = row[width_ - 1] = kPadding;
+            in[0] = in[width_ - 1] = padding_inside;
+          }
           std::copy_n(samples + s.nx * j, s.nx, row + pad_);
+          classify_samples(samples + s.nx * j, static_cast<std::size_t>(s.nx), iso_, in + pad_);
         }
       });
     } else {
       std::fill(slice.values.begin(), slice.values.end(), kPadding);
+      std::fill(slice.inside.begin(), slice.inside.end(),
+                std::uint8_t{kPadding >= iso_ ? std::uint8_t{1} : std::uint8_t{0}});
     }
     for (Index y = 0; y < height_; ++y) {
       std::uint8_t* in = slice.inside.data() + y * width_;
-      // Two simple loops the compiler vectorises (classify, then count).
-      classify_samples(slice.values.data() + y * width_, static_cast<std::size_t>(width_), iso_,
-                       in);
+      // A simple loop the compiler vectorises.
       unsigned count = 0;
       for (Index x = 0; x < width_; ++x) count += in[x];
       const auto row = static_cast<std::size_t>(y);
@@ -806,7 +829,8 @@ std::array<float, 3> deferred_vertex_normal(
 }
 
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
-                            std::int64_t first, std::int64_t last, bool defer_normals) {
+                            std::int64_t first, std::int64_t last, bool defer_normals,
+                            double expected_vertices) {
   assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
   // The extractor records cubes, and counts ambiguities, when these are set; it keeps both
   // itself (the piece takes them), so the targets stay empty.
@@ -816,7 +840,7 @@ SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOption
   with_cubes.cubes = &unused_cubes;
   if (options.stats != nullptr) with_cubes.stats = &unused_stats;
   Extractor extractor(volume, iso, with_cubes, defer_normals);
-  extractor.run(first, last);
+  extractor.run(first, last, expected_vertices);
   SurfacePiece piece;
   piece.mesh = std::move(extractor.mesh());
   piece.vertex_edges = std::move(extractor.vertex_edges());

@@ -144,9 +144,12 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 // (options.threads and .cubes are ignored). defer_normals: the mesh gets no normals but
 // vertex_edges, so that a caller who keeps few of the vertices (type merging keeps half or
 // fewer) computes only theirs, with deferred_vertex_normal, equal to extract_isosurface's.
+// expected_vertices >= 0: the outputs are reserved for about that many vertices (a caller's
+// estimate) instead of from a sample of the layers; the piece is the same either way.
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
-                            std::int64_t first, std::int64_t last, bool defer_normals = false);
+                            std::int64_t first, std::int64_t last, bool defer_normals = false,
+                            double expected_vertices = -1.0);
 
 // The normal extract_isosurface gives the vertex whose SurfacePiece::vertex_edges entry is
 // `edge` (close_borders as the piece was extracted with).

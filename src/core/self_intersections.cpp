@@ -8,6 +8,8 @@
 #include <cassert>
 #include <cmath>
 
+#include "core/plane_side.h"
+
 namespace typemerge::core {
 namespace {
 
@@ -47,58 +49,6 @@ bool degenerate(const TriangleMesh& mesh, std::uint32_t t) {
   }
   return CGAL::collinear(point(mesh, c[0]), point(mesh, c[1]), point(mesh, c[2]));
 }
-
-// Which side of triangle (a, b, c)'s plane a point is on, when double arithmetic decides it
-// for certain: the sign of det[p − a, b − a, c − a] = (p − a)·((b − a) × (c − a)), expanded
-// along p − a so the cross product and its absolute terms are computed once per triangle and
-// each point costs two dot products. The bound is Shewchuk's o3derrboundA (Adaptive precision
-// floating-point arithmetic, 1997): the same rounded differences, products and sums as his
-// orient3d, with the matrix transposed. Undecided cases (near or on the plane) go to CGAL's
-// filtered exact predicates, which would cost several times more for every pair.
-struct PlaneSide {
-  explicit PlaneSide(const TriangleMesh& mesh, const std::array<std::uint32_t, 3>& t)
-      : origin(mesh.positions[t[0]]) {
-    const auto& b = mesh.positions[t[1]];
-    const auto& c = mesh.positions[t[2]];
-    const double e1[3] = {double{b[0]} - origin[0], double{b[1]} - origin[1],
-                          double{b[2]} - origin[2]};
-    const double e2[3] = {double{c[0]} - origin[0], double{c[1]} - origin[1],
-                          double{c[2]} - origin[2]};
-    for (int k = 0; k < 3; ++k) {
-      const int i = (k + 1) % 3;
-      const int j = (k + 2) % 3;
-      normal[k] = e1[i] * e2[j] - e1[j] * e2[i];
-      magnitude[k] = std::abs(e1[i] * e2[j]) + std::abs(e1[j] * e2[i]);
-    }
-  }
-  // +1 or −1 when certain, 0 when not.
-  int side(const std::array<float, 3>& p) const {
-    const double q[3] = {double{p[0]} - origin[0], double{p[1]} - origin[1],
-                         double{p[2]} - origin[2]};
-    const double det = q[0] * normal[0] + q[1] * normal[1] + q[2] * normal[2];
-    const double permanent = std::abs(q[0]) * magnitude[0] + std::abs(q[1]) * magnitude[1] +
-                             std::abs(q[2]) * magnitude[2];
-    constexpr double kBound = (7.0 + 56.0 * 0x1p-53) * 0x1p-53;
-    if (det > kBound * permanent) return 1;
-    if (-det > kBound * permanent) return -1;
-    return 0;
-  }
-  // True when every listed vertex is certainly strictly on one side: then none of what they
-  // span meets the triangle.
-  template <std::size_t N>
-  bool one_side(const TriangleMesh& mesh, const std::array<std::uint32_t, N>& points) const {
-    const int first = side(mesh.positions[points[0]]);
-    if (first == 0) return false;
-    for (std::size_t i = 1; i < N; ++i) {
-      if (side(mesh.positions[points[i]]) != first) return false;
-    }
-    return true;
-  }
-
-  std::array<float, 3> origin;
-  double normal[3];
-  double magnitude[3];
-};
 
 // The sign of orient3d(a, b, c, d) = det[a − d, b − d, c − d] when double arithmetic decides
 // it for certain (Shewchuk's o3derrboundA, as in PlaneSide), else 0.

@@ -150,6 +150,14 @@ struct MergeStats {
   std::size_t face_vertices_removed = 0;
   std::size_t face_vertices_restored = 0;
   std::size_t triangulation_passes = 0;
+  // The work of step 1's tests, and the part of it spent on boxes that failed (what a test
+  // rejecting boxes before their components are built could save at most): marching-cubes
+  // triangles read by box tests (test_triangles), and parts' loop vertices read by tests of
+  // composed blocks (test_parts).
+  std::size_t tested_triangles = 0;
+  std::size_t tested_triangles_failed = 0;
+  std::size_t tested_loop_vertices = 0;
+  std::size_t tested_loop_vertices_failed = 0;
 
   MergeStats& operator+=(const MergeStats& part);
 };
@@ -172,10 +180,13 @@ namespace detail {
 // x-, y- and z-edges in every 4th row, the caps of a body cut by the volume's ends included),
 // on the multiple of the blocks' z edge (step 1: block_cubes, or half of it on thick slices)
 // nearest in that estimate where pieces are at least two blocks high. `threads` only speeds
-// up the estimate: the bounds do not depend on it.
+// up the estimate: the bounds do not depend on it. With `vertices`, it receives per piece
+// that estimate scaled to all rows: about marching cubes' vertices in the piece (left empty
+// when there is one piece and nothing was estimated).
 std::vector<std::int64_t> piece_bounds(const Volume& volume, float iso,
                                        const ExtractOptions& extract, const MergeOptions& options,
-                                       std::int64_t layers, unsigned threads);
+                                       std::int64_t layers, unsigned threads,
+                                       std::vector<double>* vertices = nullptr);
 
 }  // namespace detail
 

@@ -53,6 +53,50 @@ std::vector<double> brute_force(const std::vector<float>& f, const VolumeSize& s
   return d;
 }
 
+// A slab of slices with a halo (inner_wall.cpp's use): where the nearest seed lies within the
+// slab, the value is the whole grid's bit for bit; elsewhere it is no smaller. Slabs that
+// start and end inside the grid, at its ends, and cover it whole; seeds sparse enough that
+// many distances reach beyond a slab.
+TEST(DistanceTransform, SlabMatchesTheWholeGridWhereItsNearestSeedIsInside) {
+  const VolumeSize size{11, 9, 40};
+  const std::array<double, 3> h{0.7, 0.9, 1.3};
+  for (const bool border : {true, false}) {
+    const std::vector<float> seeds = random_seeds(size, 0.004, border ? 5 : 6);
+    std::vector<float> whole = seeds;
+    squared_distance_transform(whole, size, h, border, 2);
+    const std::vector<double> exact = brute_force(seeds, size, h, border);
+    const auto plane = static_cast<std::size_t>(size.nx * size.ny);
+    std::size_t equal = 0, beyond = 0;
+    for (const auto& [first, count] : {std::pair<std::int64_t, std::int64_t>{0, 7}, {5, 9},
+                                       {17, 23}, {31, 9}, {0, 40}}) {
+      const VolumeSize slab{size.nx, size.ny, count};
+      std::vector<float> part(seeds.begin() + static_cast<std::ptrdiff_t>(first * plane),
+                              seeds.begin() + static_cast<std::ptrdiff_t>((first + count) * plane));
+      squared_distance_transform_slab(part, slab, first, size.nz, h, border, 1);
+      for (std::int64_t k = 0; k < count; ++k) {
+        // Seeds beyond the slab are at least this far along z (the grid's end seeds count
+        // only where the slab reaches the end).
+        const double below = first == 0 ? 1e300 : double(k + 1) * h[2];
+        const double above = first + count == size.nz ? 1e300 : double(count - k) * h[2];
+        const double reach = std::min(below, above);
+        for (std::size_t v = 0; v < plane; ++v) {
+          const std::size_t at = static_cast<std::size_t>(k) * plane + v;
+          const std::size_t global = static_cast<std::size_t>(first + k) * plane + v;
+          if (exact[global] < reach * reach * (1 - 1e-9)) {
+            ASSERT_EQ(part[at], whole[global]) << "slab at " << first << ", k " << k;
+            ++equal;
+          } else {
+            ASSERT_GE(part[at], whole[global]);
+            beyond += part[at] > whole[global] ? 1 : 0;
+          }
+        }
+      }
+    }
+    EXPECT_GT(equal, 1000u);
+    EXPECT_GT(beyond, 20u);  // the slabs did cut off seeds: the test tests something
+  }
+}
+
 TEST(DistanceTransform, MatchesBruteForceOnAnisotropicGrids) {
   const VolumeSize size{13, 9, 7};
   for (const auto& h : {std::array<double, 3>{1, 1, 1}, std::array<double, 3>{0.7, 1.1, 2.5}}) {

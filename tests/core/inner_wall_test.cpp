@@ -131,6 +131,56 @@ TEST(InnerWall, HollowBallIsAClosedShellOfTheWallThickness) {
   }
 }
 
+// In slabs of cube layers (the default) the wall is the whole-volume computation's, byte for
+// byte: slabs of 1, 2, 3, 7 and 16 layers on balls spread along z (so that pieces join across
+// slab seams and distances reach across slabs), anisotropic and sheared grids, with and
+// without normals, one and two threads, float and int16 samples.
+TEST(InnerWall, SlabsGiveTheWholeVolumesBytes) {
+  for (const bool sheared : {false, true}) {
+    SCOPED_TRACE(sheared ? "sheared" : "orthogonal");
+    Volume volume = balls_volume({28, 24, 46}, {0.9, 0.8, 0.6},
+                                 {{{9, 14, 3}, 7.5}, {{12, 16, 12}, 6}, {{6, 13, 15}, 4}});
+    if (sheared) {
+      IndexToPatient g = volume.geometry();
+      g.axes[2] = {0.05, -0.08, 0.6};  // a gantry tilt
+      volume.set_geometry(g);
+    }
+    for (const bool as_int16 : {false, true}) {
+      Volume field = volume;
+      if (as_int16) {
+        for (float& v : field.samples()) v = std::round(v * 100.0f) + 0.0f;  // 0.01 mm; no −0
+        ASSERT_TRUE(field.to_int16_if_exact());
+      }
+      TriangleMesh outer = extract_isosurface(field, 0.0f, {.vertex_normals = true});
+      to_patient(outer, field.geometry());
+      for (const bool normals : {true, false}) {
+        if (!normals) outer.normals.clear();
+        InnerWallOptions options;
+        options.wall_mm = 2;
+        options.outer_deviation_mm = 0.9;
+        options.slab_layers = 0;
+        InnerWallStats whole_stats;
+        const TriangleMesh whole = extract_inner_wall(field, 0.0f, outer, options, &whole_stats);
+        ASSERT_GT(whole.triangles.size(), 500u);
+        for (const std::int64_t layers : {1, 2, 3, 7, 16}) {
+          for (const unsigned threads : {1u, 2u}) {
+            options.slab_layers = layers;
+            options.threads = threads;
+            InnerWallStats stats;
+            const TriangleMesh slabs = extract_inner_wall(field, 0.0f, outer, options, &stats);
+            ASSERT_EQ(slabs.positions, whole.positions) << layers << " layers";
+            ASSERT_EQ(slabs.normals, whole.normals) << layers << " layers";
+            ASSERT_EQ(slabs.triangles, whole.triangles) << layers << " layers";
+            EXPECT_EQ(stats.band_samples, whole_stats.band_samples);
+            EXPECT_EQ(stats.components, whole_stats.components);
+            EXPECT_EQ(stats.hollow_volume_mm3, whole_stats.hollow_volume_mm3);
+          }
+        }
+      }
+    }
+  }
+}
+
 // The wall has vertex normals, pointing into the hollow, when the outer surface has them, and
 // none when it has none (convert extracts without): the joined surface is uniform.
 TEST(InnerWall, NormalsFollowTheOuterSurface) {

@@ -614,6 +614,38 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   EXPECT_TRUE(detail::piece_bounds(volume, 0.0f, kClosed, options, 0, 1).empty());
 }
 
+// The estimate that cuts the pieces, scaled to all rows, is about each piece's marching-cubes
+// vertex count (it sizes the piece's outputs); the pieces are the same with or without it.
+TEST(TypeMerging, PieceBoundsEstimateEachPiecesVertices) {
+  const Volume volume = test::sample_volume(48, 48, 96, [](double x, double y, double z) {
+    const double r = std::hypot(x - 24.0, y - 24.0);
+    return std::fmod(z + 0.3 * x, 6.0) < 3.0 && r < 20.0 - 0.1 * z ? 1.0 : -1.0;
+  });
+  const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
+  MergeOptions options;
+  options.slab_layers = 24;
+  std::vector<double> vertices;
+  const std::vector<std::int64_t> bounds =
+      detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1, &vertices);
+  EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1), bounds);
+  ASSERT_GE(bounds.size(), 3u);
+  ASSERT_EQ(vertices.size(), bounds.size() - 1);
+  for (std::size_t k = 0; k + 1 < bounds.size(); ++k) {
+    const detail::SurfacePiece piece =
+        detail::extract_layers(volume, 0.0f, kClosed, bounds[k], bounds[k + 1]);
+    const auto made = static_cast<double>(piece.mesh.positions.size());
+    EXPECT_NEAR(vertices[k], made, 0.25 * made) << "piece " << k;
+    // A piece extracted with the estimate is the one extracted without it.
+    const detail::SurfacePiece sized = detail::extract_layers(
+        volume, 0.0f, kClosed, bounds[k], bounds[k + 1], false, vertices[k]);
+    EXPECT_EQ(sized.mesh.positions, piece.mesh.positions);
+    EXPECT_EQ(sized.mesh.triangles, piece.mesh.triangles);
+  }
+  options.slab_layers = 0;
+  detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1, &vertices);
+  EXPECT_TRUE(vertices.empty());
+}
+
 // A square column through every slice of a 40 × 40 × nz volume, closed by a cap at each end.
 Volume column_through_every_slice(std::int64_t nz) {
   return test::sample_volume(40, 40, nz, [](double x, double y, double) {

@@ -146,6 +146,19 @@ TEST(VolumeStorage, ExtractionFromInt16EqualsExtractionFromFloat) {
       expect_same_mesh(tm_f, tm_i);
     }
   }
+  // Isos beyond every int16 sample: nothing inside (40000, or +infinity), everything inside
+  // (−40000: the closed borders' box); both storages classify them alike.
+  for (const float iso : {40000.0f, -40000.0f, std::numeric_limits<float>::infinity()}) {
+    SCOPED_TRACE(testing::Message() << "iso " << iso);
+    const TriangleMesh mc_f = extract_isosurface(as_float, iso);
+    const TriangleMesh mc_i = extract_isosurface(as_int16, iso);
+    EXPECT_EQ(mc_f.triangles.empty(), iso > 0.0f);
+    expect_same_mesh(mc_f, mc_i);
+    MergeOptions merge;
+    merge.slab_layers = 8;
+    expect_same_mesh(extract_type_merged(as_float, iso, {}, merge),
+                     extract_type_merged(as_int16, iso, {}, merge));
+  }
   // The window field reads either storage into the same floats.
   const Volume field_f = window_field(as_float, 0.0f, 400.0f);
   const Volume field_i = window_field(as_int16, 0.0f, 400.0f);

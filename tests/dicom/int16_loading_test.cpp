@@ -36,13 +36,15 @@ struct Loaded {
   LoadedSeries float_only;
 };
 
-Loaded write_and_load(const SeriesLayout& l, const std::string& name) {
+Loaded write_and_load(const SeriesLayout& l, const std::string& name,
+                      const std::function<void(ct_writer::CtSliceSpec&)>& edit = {}) {
   const fs::path dir =
       fs::temp_directory_path() / ("typemerge_int16_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
-  const auto specs = ct_writer::make_axial_series(l);
+  auto specs = ct_writer::make_axial_series(l);
   for (std::size_t k = 0; k < specs.size(); ++k) {
+    if (edit) edit(specs[k]);
     ct_writer::write_ct_slice(specs[k], dir / ("slice" + std::to_string(k) + ".dcm"));
   }
   const FolderScan scan = scan_folder(dir, ScanOptions{});
@@ -101,6 +103,44 @@ TEST(Int16Loading, ValueBeyondInt16FallsBackToFloat) {
   expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
   EXPECT_EQ(loaded.allowed.volume.at(2, 3, 4), 63976.0f);
   EXPECT_EQ(loaded.allowed.max_hu, 63976.0f);
+}
+
+// Signed stored values, an integer slope other than 1 and a padding range: the int16 samples
+// (decoded in integers) equal the float route's values, padding included.
+TEST(Int16Loading, SignedIntegerSlopeAndPaddingGiveTheFloatRoutesValues) {
+  SeriesLayout l = layout("int16_signed_slope");
+  l.pixel_representation = 1;
+  l.bits_stored = 16;
+  l.high_bit = 15;
+  l.rescale_slope = 2;
+  l.rescale_intercept = -100;
+  l.stored_value = [](int i, int j, int k) {
+    return i == 0 && j == 0 ? -3000 : 40 * i - 30 * j + k;
+  };
+  const Loaded loaded = write_and_load(l, "signed_slope", [](ct_writer::CtSliceSpec& spec) {
+    spec.pixel_padding_value = -3000;
+  });
+  EXPECT_TRUE(loaded.allowed.volume.holds_int16());
+  expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+  EXPECT_EQ(loaded.allowed.volume.at(0, 0, 1), -1000.0f);  // padding: air
+  EXPECT_EQ(loaded.allowed.volume.at(3, 9, 2), -396.0f);   // 2 · (120 − 270 + 2) − 100
+  EXPECT_EQ(loaded.allowed.min_hu, loaded.float_only.min_hu);
+  EXPECT_EQ(loaded.allowed.max_hu, loaded.float_only.max_hu);
+}
+
+// Below int16 after an integer rescale: float samples, the same values.
+TEST(Int16Loading, ValueBelowInt16FallsBackToFloat) {
+  SeriesLayout l = layout("int16_below");
+  l.pixel_representation = 1;
+  l.bits_stored = 16;
+  l.high_bit = 15;
+  l.rescale_slope = 3;
+  l.rescale_intercept = -1024;
+  l.stored_value = [](int i, int j, int k) { return i == 1 && j == 2 && k == 3 ? -20000 : 100; };
+  const Loaded loaded = write_and_load(l, "below");
+  EXPECT_FALSE(loaded.allowed.volume.holds_int16());
+  expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+  EXPECT_EQ(loaded.allowed.volume.at(1, 2, 3), -61024.0f);
 }
 
 }  // namespace

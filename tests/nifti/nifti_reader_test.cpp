@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include "support/scratch_files.h"
@@ -30,6 +32,11 @@ NiftiSpec small_spec(int datatype = test::kDtFloat32) {
 NiftiImage decode(const NiftiSpec& spec) {
   const auto bytes = test::nifti_bytes(spec);
   return decode_nifti(bytes);
+}
+
+// Sample v as a float, whatever the storage.
+float sample(const core::Volume& volume, std::size_t v) {
+  return volume.visit([&](const auto* samples) { return static_cast<float>(samples[v]); });
 }
 
 TEST(NiftiReader, SformFloatValuesAndLpsGeometry) {
@@ -65,14 +72,64 @@ TEST(NiftiReader, EveryIntegerAndFloatTypeWithScaling) {
   }
   NiftiSpec negative = small_spec(test::kDtInt16);
   negative.values[5] = -1024;
-  EXPECT_FLOAT_EQ(decode(negative).volume.samples()[5], -1024.0f);
+  EXPECT_FLOAT_EQ(sample(decode(negative).volume, 5), -1024.0f);
 }
 
 TEST(NiftiReader, SlopeZeroMeansNoScaling) {
   NiftiSpec spec = small_spec(test::kDtInt16);
   spec.slope = 0;
   spec.inter = 100;
-  EXPECT_FLOAT_EQ(decode(spec).volume.samples()[7], 7.0f);
+  EXPECT_FLOAT_EQ(sample(decode(spec).volume, 7), 7.0f);
+}
+
+// Integer values within int16 load as int16 samples (as a CT series does), anything else as
+// floats; the values are the same either way.
+TEST(NiftiReader, IntegerValuesWithinInt16LoadAsInt16) {
+  struct Case {
+    int datatype;
+    double slope, inter;
+    double extra;  // stored at sample 23
+    bool int16;
+  };
+  const Case cases[] = {
+      {test::kDtInt16, 0, 0, -32768, true},    // no scaling
+      {test::kDtInt16, 1, -1024, 100, true},   // integer intercept
+      {test::kDtUint8, 1, -1024, 255, true},   // decided by the type's range
+      {test::kDtInt8, 0, 0, -128, true},
+      {test::kDtUint16, 0, 0, 32767, true},    // decided by the data
+      {test::kDtUint16, 0, 0, 32768, false},   // beyond int16
+      {test::kDtInt32, 1, -1024, 33791, true},  // 33791 − 1024 = 32767
+      {test::kDtInt32, 1, -1024, -31745, false},  // −32769
+      {test::kDtUint64, 0, 0, 4000, true},
+      {test::kDtInt16, 2, 0, 5, false},        // slope 2
+      {test::kDtInt16, 1, 0.5, 5, false},      // fractional intercept
+      {test::kDtInt16, 1, -40000, 5, false},   // intercept beyond the range
+      {test::kDtFloat32, 0, 0, 5, false},      // float data stays float
+      {test::kDtFloat64, 0, 0, 5, false},
+  };
+  for (const Case& c : cases) {
+    for (const bool big_endian : {false, true}) {
+      NiftiSpec spec = small_spec(c.datatype);
+      spec.slope = c.slope;
+      spec.inter = c.inter;
+      spec.values[23] = c.extra;
+      spec.big_endian = big_endian;
+      const NiftiImage image = decode(spec);
+      const double slope = c.slope == 0 ? 1 : c.slope, inter = c.slope == 0 ? 0 : c.inter;
+      EXPECT_EQ(image.volume.holds_int16(), c.int16)
+          << "type " << c.datatype << " extra " << c.extra << " slope " << c.slope;
+      EXPECT_EQ(image.volume.sample_bytes(), 24u * (c.int16 ? 2 : 4));
+      for (std::size_t v = 0; v < 24; ++v) {
+        ASSERT_EQ(sample(image.volume, v),
+                  static_cast<float>(slope * spec.values[v] + inter))
+            << "type " << c.datatype << " sample " << v;
+      }
+      EXPECT_EQ(image.values.min, static_cast<float>(std::min(inter, slope * c.extra + inter)));
+      EXPECT_EQ(image.values.max, static_cast<float>(std::max(slope * 22 + inter,
+                                                              slope * c.extra + inter)));
+      if (c.int16) EXPECT_TRUE(image.values.all_integer);
+    }
+  }
 }
 
 TEST(NiftiReader, QformWhenNoSform) {
@@ -200,6 +257,106 @@ TEST(NiftiReader, DamagedGzipIsRefused) {
   crc[crc.size() - 6] ^= 0xff;  // the CRC of the member
   test::write_bytes(dir / "crc.nii.gz", crc, false);
   EXPECT_THROW(read_nifti(dir / "crc.nii.gz"), ReadError);
+  fs::remove_all(dir);
+}
+
+// read_nifti decodes the data as it reads (inflates) it, in pieces of 1 MiB, where the header
+// decides the storage: the same volume, summary and warnings as decoding the whole file, also
+// with samples cut between pieces (odd vox_offset, 8-byte samples), for gzip and raw files;
+// a file cut short is refused with the same reason. Where the values decide the storage, a
+// value beyond int16 in a late piece turns the samples so far to floats.
+TEST(NiftiReader, ReadingInPiecesGivesTheWholeFilesVolume) {
+  const fs::path dir = test::fresh_dir("nifti_pieces");
+  struct Case {
+    int type;
+    double inter;
+    double late;  // stored at sample 480,000 (NaN: none)
+  };
+  for (const Case c : {Case{test::kDtInt16, 0, std::nan("")}, Case{test::kDtUint8, -1000, std::nan("")},
+                       Case{test::kDtFloat64, 0, std::nan("")}, Case{test::kDtFloat32, 0, std::nan("")},
+                       Case{test::kDtInt16, -1000, std::nan("")},  // the values decide: int16
+                       Case{test::kDtInt16, -1000, -32000},         // the values decide: float
+                       Case{test::kDtUint16, 0, 40000}}) {
+    const int type = c.type;
+    NiftiSpec spec;
+    spec.dim = {3, 97, 83, 61, 1, 1, 1, 1};  // 491,111 samples: over 3.9 MB as float64
+    spec.datatype = type;
+    spec.vox_offset = 355;
+    spec.inter = c.inter;
+    spec.slope = c.inter != 0 ? 1 : 0;
+    std::uint32_t state = 3;
+    for (int v = 0; v < 97 * 83 * 61; ++v) {
+      state = state * 1664525u + 1013904223u;
+      const double value = static_cast<double>(state >> 24);  // 0…255
+      spec.values.push_back(type == test::kDtFloat64 ? value / 7 : value);
+    }
+    if (type == test::kDtFloat32) spec.values[1000] = std::nan("");
+    if (!std::isnan(c.late)) spec.values[480000] = c.late;
+    const auto bytes = test::nifti_bytes(spec);
+    const NiftiImage whole = decode_nifti(bytes);
+    for (const bool gzip : {true, false}) {
+      const fs::path file = dir / (gzip ? "v.nii.gz" : "v.nii");
+      test::write_bytes(file, bytes, gzip);
+      const NiftiImage read = read_nifti(file);
+      SCOPED_TRACE(testing::Message() << "type " << type << " inter " << c.inter << " late "
+                                      << c.late << (gzip ? " gzip" : " raw"));
+      ASSERT_EQ(read.volume.holds_int16(), whole.volume.holds_int16());
+      ASSERT_EQ(read.volume.sample_bytes(), whole.volume.sample_bytes());
+      const bool same = read.volume.visit([&](const auto* a) {
+        return whole.volume.visit([&](const auto* b) {
+          return std::memcmp(a, b, read.volume.sample_bytes()) == 0;
+        });
+      });
+      EXPECT_TRUE(same);
+      EXPECT_EQ(read.values.min, whole.values.min);
+      EXPECT_EQ(read.values.max, whole.values.max);
+      EXPECT_EQ(read.values.non_finite, whole.values.non_finite);
+      EXPECT_EQ(read.values.all_integer, whole.values.all_integer);
+      EXPECT_EQ(read.warnings, whole.warnings);
+      // Cut short (inside a sample): the reason decode_nifti gives.
+      auto cut = bytes;
+      cut.resize(bytes.size() - 5);
+      test::write_bytes(file, cut, gzip);
+      std::string reason, expected;
+      try {
+        read_nifti(file);
+      } catch (const ReadError& error) {
+        reason = error.what();
+      }
+      try {
+        decode_nifti(cut);
+      } catch (const ReadError& error) {
+        expected = error.what();
+      }
+      EXPECT_FALSE(expected.empty());
+      EXPECT_EQ(reason, expected);
+    }
+  }
+  fs::remove_all(dir);
+}
+
+// gzip members one after another (as gzip allows; pigz and concatenated files write them),
+// then bytes that are no member: read as the members' bytes, the rest ignored.
+TEST(NiftiReader, GzipMembersInSequence) {
+  const fs::path dir = test::fresh_dir("nifti_members");
+  NiftiSpec spec = small_spec(test::kDtInt16);
+  spec.dim = {3, 64, 64, 9, 1, 1, 1, 1};
+  spec.values.clear();
+  for (int v = 0; v < 64 * 64 * 9; ++v) spec.values.push_back(v % 3001 - 1000);
+  const auto raw = test::nifti_bytes(spec);
+  for (const std::size_t cut : {std::size_t{1}, std::size_t{350}, raw.size() / 2, raw.size() - 1}) {
+    const test::FileBytes first(raw.begin(), raw.begin() + static_cast<std::ptrdiff_t>(cut));
+    const test::FileBytes second(raw.begin() + static_cast<std::ptrdiff_t>(cut), raw.end());
+    test::FileBytes gz = test::gzip_bytes(first);
+    const test::FileBytes more = test::gzip_bytes(second);
+    gz.insert(gz.end(), more.begin(), more.end());
+    gz.push_back(0);  // trailing garbage
+    test::write_bytes(dir / "m.nii.gz", gz, false);
+    const NiftiImage image = read_nifti(dir / "m.nii.gz");
+    ASSERT_TRUE(image.volume.holds_int16()) << cut;
+    const NiftiImage whole = decode_nifti(raw);
+    EXPECT_TRUE(image.volume.int16_samples() == whole.volume.int16_samples()) << cut;
+  }
   fs::remove_all(dir);
 }
 

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <string>
 
 #include "support/scratch_files.h"
 #include "support/test_data.h"
@@ -15,6 +16,11 @@ namespace typemerge::nrrd {
 namespace {
 
 namespace fs = std::filesystem;
+
+// Sample v as a float, whatever the storage.
+float sample(const core::Volume& volume, std::size_t v) {
+  return volume.visit([&](const auto* samples) { return static_cast<float>(samples[v]); });
+}
 
 std::vector<double> ramp(int n) {
   std::vector<double> v;
@@ -66,13 +72,42 @@ TEST(NrrdReader, EveryTypeBothByteOrdersGzip) {
                                    "encoding: " + (gzip ? "gzip" : "raw") +
                                    "\nendian: " + (big ? "big" : "little") + "\n";
         const NrrdImage image = decode_nrrd(test::nrrd_bytes(header, c.raw(ramp(24), big), gzip));
+        // Integer types (values 0…23, within int16) load as int16, float types as float.
+        const bool integer = std::string(c.name) != "float" && std::string(c.name) != "double";
+        EXPECT_EQ(image.layers[0].holds_int16(), integer) << c.name;
         for (int i = 0; i < 24; ++i) {
-          ASSERT_FLOAT_EQ(image.layers[0].samples()[static_cast<std::size_t>(i)], float(i))
+          ASSERT_FLOAT_EQ(sample(image.layers[0], static_cast<std::size_t>(i)), float(i))
               << c.name << (big ? " big" : " little") << (gzip ? " gzip" : " raw");
         }
       }
     }
   }
+}
+
+// Values beyond int16 (an unsigned short of 40000, an int of −40000) stay float, per layer.
+TEST(NrrdReader, ValuesBeyondInt16StayFloat) {
+  std::vector<double> values = ramp(24);
+  values[17] = 40000;
+  const NrrdImage wide = decode_nrrd(test::nrrd_bytes(
+      "type: unsigned short\n" + kGeometry + "encoding: raw\nendian: little\n",
+      test::raw_samples<std::uint16_t>(values), false));
+  EXPECT_FALSE(wide.layers[0].holds_int16());
+  EXPECT_EQ(sample(wide.layers[0], 17), 40000.0f);
+  values[17] = -40000;
+  const NrrdImage negative = decode_nrrd(test::nrrd_bytes(
+      "type: int\n" + kGeometry + "encoding: raw\nendian: big\n",
+      test::raw_samples<std::int32_t>(values, true), false));
+  EXPECT_FALSE(negative.layers[0].holds_int16());
+  EXPECT_EQ(sample(negative.layers[0], 17), -40000.0f);
+  EXPECT_EQ(negative.values.min, -40000.0f);
+  values[17] = -32768;
+  const NrrdImage fits = decode_nrrd(test::nrrd_bytes(
+      "type: int\n" + kGeometry + "encoding: raw\nendian: big\n",
+      test::raw_samples<std::int32_t>(values, true), false));
+  EXPECT_TRUE(fits.layers[0].holds_int16());
+  EXPECT_EQ(sample(fits.layers[0], 17), -32768.0f);
+  EXPECT_EQ(fits.values.min, -32768.0f);
+  EXPECT_EQ(fits.values.max, 23.0f);
 }
 
 TEST(NrrdReader, DetachedHeaderWithByteSkip) {
@@ -132,8 +167,8 @@ TEST(NrrdReader, SlicerLayeredSegmentation) {
       decode_nrrd(test::nrrd_bytes(header, test::raw_samples<std::uint8_t>(values), true));
   EXPECT_TRUE(image.header.segmentation);
   ASSERT_EQ(image.layers.size(), 2u);
-  EXPECT_FLOAT_EQ(image.layers[0].samples()[9], 2.0f);
-  EXPECT_FLOAT_EQ(image.layers[1].samples()[9], 1.0f);
+  EXPECT_FLOAT_EQ(sample(image.layers[0], 9), 2.0f);
+  EXPECT_FLOAT_EQ(sample(image.layers[1], 9), 1.0f);
   const core::LabelVolume labels = to_label_volume(std::move(image));
   ASSERT_EQ(labels.segments.size(), 3u);
   EXPECT_EQ(labels.segments[1].name, "spine");

@@ -232,8 +232,14 @@ bool BlockPass::try_single_cubes(std::span<std::uint32_t> cubes) {
 bool BlockPass::try_merge(std::span<const std::uint32_t> cubes, const Box& box,
                           std::int32_t size, bool emit_failures) {
   runs_.clear();
-  for (std::uint32_t cube : cubes) runs_.push_back(piece_.triangles_of(cube));
+  std::size_t triangles = 0;
+  for (std::uint32_t cube : cubes) {
+    runs_.push_back(piece_.triangles_of(cube));
+    triangles += runs_.back().end - runs_.back().first;
+  }
   const bool all = test_.test_triangles(runs_, box, stats_);
+  stats_.tested_triangles += triangles;
+  if (!all) stats_.tested_triangles_failed += triangles;
   if (all || emit_failures) test_.record(box, size, store_, kept_);
   return all;
 }
@@ -242,8 +248,14 @@ bool BlockPass::try_merge(std::span<const std::uint32_t> cubes, const Box& box,
 // merged: tries the block as a whole, whose disks then replace theirs. Returns true either
 // way (its cubes all belong to merged disks).
 bool BlockPass::try_replacing(const Box& box, std::int32_t size, std::size_t disks_before) {
-  if (store_.disks.size() == disks_before ||
-      !test_.test_parts(store_, disks_before, box, size, stats_, composed_)) {
+  if (store_.disks.size() == disks_before) return true;
+  std::size_t loop_vertices = 0;
+  for (std::size_t p = disks_before; p < store_.disks.size(); ++p) {
+    loop_vertices += store_.disks[p].loop_size;
+  }
+  stats_.tested_loop_vertices += loop_vertices;
+  if (!test_.test_parts(store_, disks_before, box, size, stats_, composed_)) {
+    stats_.tested_loop_vertices_failed += loop_vertices;
     return true;
   }
   // The parts are kept, by component, for the composed disks to fall back to.

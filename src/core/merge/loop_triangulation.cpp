@@ -9,7 +9,7 @@ namespace typemerge::core::merge {
 bool LoopTriangulator::is_simple(std::span<const VertexId> loop,
                                  std::span<const Position> positions, const Box& box,
                                  const P3& n) {
-  project(loop, positions, box, n);
+  project(loop, positions, box, n, /*face_masks=*/false);
   return flat_is_simple();
 }
 
@@ -20,7 +20,7 @@ Triangulation LoopTriangulator::triangulate(std::span<const VertexId> loop,
                                            std::span<const Position> positions, const Box& box,
                                            const P3& n, bool check_outline,
                                            std::vector<Triangle>& out) {
-  project(loop, positions, box, n);
+  project(loop, positions, box, n, /*face_masks=*/true);
   if (check_outline && !flat_is_simple()) return Triangulation::kNotSimple;
   const std::size_t before = out.size();
   if (!clip_ears(loop, positions, out)) {
@@ -31,9 +31,10 @@ Triangulation LoopTriangulator::triangulate(std::span<const VertexId> loop,
 }
 
 // The loop in 2D: coordinates in a basis (u, w) with u × w = n, so the loop (CCW about n)
-// is counter-clockwise; with its face masks on the box.
+// is counter-clockwise; with its face masks on the box when asked (the ears need them, the
+// outline test does not).
 void LoopTriangulator::project(std::span<const VertexId> loop, std::span<const Position> positions,
-                               const Box& box, const P3& n) {
+                               const Box& box, const P3& n, bool face_masks) {
   const int axis = std::fabs(n[0]) < std::fabs(n[1])
                        ? (std::fabs(n[0]) < std::fabs(n[2]) ? 0 : 2)
                        : (std::fabs(n[1]) < std::fabs(n[2]) ? 1 : 2);
@@ -43,13 +44,17 @@ void LoopTriangulator::project(std::span<const VertexId> loop, std::span<const P
   const double ul = std::sqrt(dot(u, u));
   for (double& c : u) c /= ul;
   const P3 w = cross(n, u);
-  flat_.clear();
+  flat_.resize(loop.size());
+  for (std::size_t i = 0; i < loop.size(); ++i) {
+    const P3 p = to_double(positions[loop[i]]);
+    flat_[i] = {dot(p, u), dot(p, w)};
+  }
   flat_masks_.clear();
+  if (!face_masks) return;
   const FaceTest faces(box);
-  for (VertexId v : loop) {
-    const P3 p = to_double(positions[v]);
-    flat_.push_back({dot(p, u), dot(p, w)});
-    flat_masks_.push_back(static_cast<std::uint8_t>(faces.mask(positions[v])));
+  flat_masks_.resize(loop.size());
+  for (std::size_t i = 0; i < loop.size(); ++i) {
+    flat_masks_[i] = static_cast<std::uint8_t>(faces.mask(positions[loop[i]]));
   }
 }
 
@@ -136,15 +141,19 @@ bool LoopTriangulator::flat_is_simple() {
 // Shape of the triangle at loop positions (a, b, c) in millimetres: 1 − the cosine of its
 // smallest angle, so larger is better.
 double LoopTriangulator::shape(std::uint32_t a, std::uint32_t b, std::uint32_t c) const {
-  const P3& pa = mm_[a];
-  const P3& pb = mm_[b];
-  const P3& pc = mm_[c];
-  auto cosine = [](const P3& o, const P3& p, const P3& q) {
-    const P3 u = sub(p, o);
-    const P3 v = sub(q, o);
-    return dot(u, v) / std::sqrt(dot(u, u) * dot(v, v));
-  };
-  return 1.0 - std::max({cosine(pa, pb, pc), cosine(pb, pc, pa), cosine(pc, pa, pb)});
+  // The cosine at a corner o between p − o and q − o, from the three edge vectors: p − o is
+  // −(o − p) exactly in floating point, so each cosine is the same number as computed from
+  // its own two differences, with half the subtractions and products.
+  const P3 ab = sub(mm_[b], mm_[a]);
+  const P3 bc = sub(mm_[c], mm_[b]);
+  const P3 ac = sub(mm_[c], mm_[a]);
+  const double ab2 = dot(ab, ab);
+  const double bc2 = dot(bc, bc);
+  const double ac2 = dot(ac, ac);
+  const double at_a = dot(ab, ac) / std::sqrt(ab2 * ac2);
+  const double at_b = -dot(bc, ab) / std::sqrt(bc2 * ab2);
+  const double at_c = dot(ac, bc) / std::sqrt(ac2 * bc2);
+  return 1.0 - std::max({at_a, at_b, at_c});
 }
 
 // Whether the ear at loop position i (with its current neighbours) may be clipped: convex,

@@ -49,7 +49,7 @@ class LoopTriangulator {
 
  private:
   void project(std::span<const VertexId> loop, std::span<const Position> positions,
-               const Box& box, const P3& n);
+               const Box& box, const P3& n, bool face_masks);
   bool star_shaped_from_centroid() const;
   bool flat_is_simple();
   double shape(std::uint32_t a, std::uint32_t b, std::uint32_t c) const;

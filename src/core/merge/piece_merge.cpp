@@ -48,10 +48,11 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
 }  // namespace
 
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
-                        const MergeOptions& options, std::int64_t first, std::int64_t last) {
+                        const MergeOptions& options, std::int64_t first, std::int64_t last,
+                        double expected_vertices) {
   const bool normals = extract.vertex_normals;
-  detail::SurfacePiece piece =
-      detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals);
+  detail::SurfacePiece piece = detail::extract_layers(volume, iso, extract, first, last,
+                                                      /*defer_normals=*/normals, expected_vertices);
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;

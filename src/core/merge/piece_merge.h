@@ -29,8 +29,11 @@ struct MergedPiece {
 // (vertex order kept, so the seam's shared vertices stay first and in order). Normals (when
 // extract.vertex_normals) only for the vertices kept. Throws std::logic_error if a seam
 // vertex were dropped (it cannot be: seam vertices lie on block faces no second disk shares).
+// expected_vertices: an estimate of marching cubes' vertices in the piece, to size its
+// outputs (detail::extract_layers; < 0: none).
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
-                        const MergeOptions& options, std::int64_t first, std::int64_t last);
+                        const MergeOptions& options, std::int64_t first, std::int64_t last,
+                        double expected_vertices = -1.0);
 
 // Appends a merged piece to `out`, joining its shared vertices to `seam` (the output ids of
 // the top slice of the piece appended before it), and makes `seam` its own top slice.
