@@ -330,6 +330,20 @@ class Extractor {
     }
   }
 
+  // Writes its outputs into an earlier piece's arrays (emptied here, their capacity kept).
+  void reuse(detail::SurfacePiece&& old) {
+    const auto take = [](auto& into, auto& from) {
+      into = std::move(from);
+      into.clear();
+    };
+    take(mesh_.positions, old.mesh.positions);
+    take(mesh_.normals, old.mesh.normals);
+    take(mesh_.triangles, old.mesh.triangles);
+    take(vertex_edges_, old.vertex_edges);
+    take(centroid_normals_, old.centroid_normals);
+    take(cubes_, old.cubes);
+  }
+
   TriangleMesh& mesh() { return mesh_; }
   std::vector<std::uint64_t>& vertex_edges() { return vertex_edges_; }
   std::vector<std::array<float, 3>>& centroid_normals() { return centroid_normals_; }
@@ -830,7 +844,7 @@ std::array<float, 3> deferred_vertex_normal(
 
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals,
-                            double expected_vertices) {
+                            double expected_vertices, SurfacePiece* recycled) {
   assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
   // The extractor records cubes, and counts ambiguities, when these are set; it keeps both
   // itself (the piece takes them), so the targets stay empty.
@@ -840,6 +854,7 @@ SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOption
   with_cubes.cubes = &unused_cubes;
   if (options.stats != nullptr) with_cubes.stats = &unused_stats;
   Extractor extractor(volume, iso, with_cubes, defer_normals);
+  if (recycled != nullptr) extractor.reuse(std::move(*recycled));
   extractor.run(first, last, expected_vertices);
   SurfacePiece piece;
   piece.mesh = std::move(extractor.mesh());

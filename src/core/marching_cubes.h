@@ -146,10 +146,12 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 // fewer) computes only theirs, with deferred_vertex_normal, equal to extract_isosurface's.
 // expected_vertices >= 0: the outputs are reserved for about that many vertices (a caller's
 // estimate) instead of from a sample of the layers; the piece is the same either way.
+// recycled: an earlier piece whose arrays the new one is written into (emptied, capacity
+// kept: a caller extracting piece after piece maps their pages once); left moved-from.
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals = false,
-                            double expected_vertices = -1.0);
+                            double expected_vertices = -1.0, SurfacePiece* recycled = nullptr);
 
 // The normal extract_isosurface gives the vertex whose SurfacePiece::vertex_edges entry is
 // `edge` (close_borders as the piece was extracted with).

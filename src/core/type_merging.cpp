@@ -6,6 +6,8 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <mutex>
 #include <numbers>
 #include <span>
 #include <stdexcept>
@@ -206,11 +208,30 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   // ahead from the pieces so far (their average × the pieces in all, plus a fifth), so it is
   // not copied by doubling at its largest.
   std::vector<merge::VertexId> seam;
+  // Scratch for the pieces being merged: taken while one is, given back after (at most one
+  // per thread exists; freed after the last pieces, while the output is at its largest).
+  std::mutex scratch_mutex;
+  std::vector<std::unique_ptr<merge::PieceScratch>> spare;
   detail::make_in_order<merge::MergedPiece>(
       count, threads,
       [&](std::size_t i) {
-        return merge::merge_piece(volume, iso, extract, options, bounds[i], bounds[i + 1],
-                                  i < expected_vertices.size() ? expected_vertices[i] : -1.0);
+        std::unique_ptr<merge::PieceScratch> scratch;
+        {
+          const std::lock_guard lock(scratch_mutex);
+          if (!spare.empty()) {
+            scratch = std::move(spare.back());
+            spare.pop_back();
+          }
+        }
+        if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
+        merge::MergedPiece piece =
+            merge::merge_piece(volume, iso, extract, options, bounds[i], bounds[i + 1], *scratch,
+                               i < expected_vertices.size() ? expected_vertices[i] : -1.0);
+        if (i + threads < count) {  // else freed now: the last pieces need no more
+          const std::lock_guard lock(scratch_mutex);
+          spare.push_back(std::move(scratch));
+        }
+        return piece;
       },
       [&](std::size_t i, merge::MergedPiece& piece) {
         const std::size_t vertices =

@@ -1,5 +1,6 @@
 #include "core/merge/piece_merge.h"
 
+#include <algorithm>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -19,7 +20,7 @@ namespace {
 // The three steps on one piece's marching-cubes surface; returns its triangles.
 std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattice,
                                     const IndexToPatient& geometry, const MergeOptions& options,
-                                    MergeStats& stats) {
+                                    DiskStore& store, MergeStats& stats) {
   const std::span<const Position> positions = piece.mesh.positions;
   const std::array<double, 3> spacing =
       options.blocks_follow_spacing
@@ -27,7 +28,7 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
           : std::array<double, 3>{1.0, 1.0, 1.0};
   LocalTable table(positions);
   LoopTriangulator triangulator(geometry.axes);
-  DiskStore store;
+  store.reset(piece.mesh.triangles.size(), positions.size());
   std::vector<Triangle> out;
   out.reserve(piece.mesh.triangles.size() / 2);
 
@@ -49,10 +50,11 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
 
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last,
-                        double expected_vertices) {
+                        PieceScratch& scratch, double expected_vertices) {
   const bool normals = extract.vertex_normals;
-  detail::SurfacePiece piece = detail::extract_layers(volume, iso, extract, first, last,
-                                                      /*defer_normals=*/normals, expected_vertices);
+  detail::SurfacePiece piece =
+      detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
+                             expected_vertices, &scratch.surface);
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
@@ -67,14 +69,17 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
                 static_cast<std::int32_t>(size.ny - 1 + pad),
                 static_cast<std::int32_t>(last) - pad};
   std::vector<Triangle> triangles =
-      merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options, out.stats);
-  piece.cubes = {};
+      merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options,
+                    scratch.store, out.stats);
 
   // Compaction: the vertices still used, in their order (so the seam's stay first, in order).
   std::vector<VertexId> new_id(piece.mesh.positions.size(), kNone);
   for (const Triangle& t : triangles) {
     for (VertexId v : t) new_id[v] = 0;
   }
+  const auto kept = static_cast<std::size_t>(std::count(new_id.begin(), new_id.end(), 0));
+  out.mesh.positions.reserve(kept);
+  if (normals) out.mesh.normals.reserve(kept);
   VertexId next = 0;
   for (VertexId v = 0; v < new_id.size(); ++v) {
     if (new_id[v] == 0) {
@@ -101,6 +106,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   }
   out.stats.triangles_after = out.mesh.triangles.size();
   out.stats.vertices_after = out.mesh.positions.size() - out.shared;
+  scratch.surface = std::move(piece);
   return out;
 }
 
