@@ -179,7 +179,8 @@ bool LoopTriangulator::ear_valid(std::uint32_t i) const {
   return true;
 }
 
-// Triangulates the projected loop by clipping, each time, the valid ear of best shape.
+// Triangulates the projected loop by clipping, each time, the valid ear of best shape, then
+// flipping for shape; a triangle and a quad by their own paths (the same result).
 bool LoopTriangulator::clip_ears(std::span<const VertexId> loop,
                                  std::span<const Position> positions, std::vector<Triangle>& out) {
   const auto n = static_cast<std::uint32_t>(loop.size());
@@ -189,11 +190,29 @@ bool LoopTriangulator::clip_ears(std::span<const VertexId> loop,
   ear_shape_.clear();
   prev_.resize(n);
   succ_.resize(n);
-  score_.resize(n);
   for (std::uint32_t i = 0; i < n; ++i) {
-    prev_[i] = (i + n - 1) % n;
-    succ_[i] = (i + 1) % n;
+    prev_[i] = i == 0 ? n - 1 : i - 1;
+    succ_[i] = i + 1 == n ? 0 : i + 1;
   }
+  const bool clipped = n == 3 ? clip_triangle() : n == 4 ? clip_quad() : clip_any();
+  if (!clipped) return false;
+  // shape() is 1 − the cosine of the smallest angle: below 10° for any cap or needle.
+  static const double may_be_extreme = 1.0 - std::cos(10.0 * std::numbers::pi / 180.0);
+  made_extremes_ = {};
+  for (std::size_t t = 0; t < ears_.size(); ++t) {
+    if (ear_shape_[t] < may_be_extreme) {
+      made_extremes_ += extreme_angles_of(mm_[ears_[t][0]], mm_[ears_[t][1]], mm_[ears_[t][2]]);
+    }
+  }
+  for (const auto& t : ears_) out.push_back({loop[t[0]], loop[t[1]], loop[t[2]]});
+  return true;
+}
+
+// The general path: ears clipped best first (a valid ear's shape is never below 0), then
+// flip_for_shape().
+bool LoopTriangulator::clip_any() {
+  const auto n = static_cast<std::uint32_t>(prev_.size());
+  score_.resize(n);
   auto score_ear = [&](std::uint32_t i) {
     score_[i] = ear_valid(i) ? shape(prev_[i], i, succ_[i]) : -1.0;
   };
@@ -222,16 +241,70 @@ bool LoopTriangulator::clip_ears(std::span<const VertexId> loop,
     score_ear(c);
   }
   flip_for_shape();
-  // shape() is 1 − the cosine of the smallest angle: below 10° for any cap or needle.
-  static const double may_be_extreme = 1.0 - std::cos(10.0 * std::numbers::pi / 180.0);
-  made_extremes_ = {};
-  for (std::size_t t = 0; t < ears_.size(); ++t) {
-    if (ear_shape_[t] < may_be_extreme) {
-      made_extremes_ += extreme_angles_of(mm_[ears_[t][0]], mm_[ears_[t][1]], mm_[ears_[t][2]]);
+  return true;
+}
+
+// A triangle: clip_any() takes its first valid ear (the three have one shape, and no flip).
+bool LoopTriangulator::clip_triangle() {
+  for (std::uint32_t i = 0; i < 3; ++i) {
+    if (!ear_valid(i)) continue;
+    ears_.push_back({prev_[i], i, succ_[i]});
+    ear_shape_.push_back(shape(prev_[i], i, succ_[i]));
+    return true;
+  }
+  return false;
+}
+
+// A quad: clip_any()'s ears and flip with each of its four triangles' shapes computed once
+// (clip_any() scores the last triangle again from two corners, and the flip's triangles are
+// the other two ears'). Clipping ear b leaves (a, c, x) (a, c its neighbours), taken at the
+// first valid corner from a, as clip_any() scans; flip_for_shape() then tries the one inner
+// edge (c, a) against the apexes b and x, and a flip leaves nothing else to flip (the edge
+// back would lower the smallest angle).
+bool LoopTriangulator::clip_quad() {
+  std::array<double, 4> score{};
+  std::uint32_t b = kNone;
+  double best_score = -0.5;
+  for (std::uint32_t i = 0; i < 4; ++i) {
+    score[i] = ear_valid(i) ? shape(prev_[i], i, succ_[i]) : -1.0;
+    if (score[i] > best_score) {
+      best_score = score[i];
+      b = i;
     }
   }
-  for (const auto& t : ears_) out.push_back({loop[t[0]], loop[t[1]], loop[t[2]]});
+  if (b == kNone) return false;
+  const std::uint32_t a = prev_[b];
+  const std::uint32_t c = succ_[b];
+  const std::uint32_t x = succ_[c];
+  ears_.push_back({a, b, c});
+  ear_shape_.push_back(best_score);
+  succ_[a] = c;
+  prev_[c] = a;
+  const bool valid_x = score[x] > -0.5;  // its ear (c, x, a) is the last triangle
+  const std::uint32_t last = ear_valid(a) ? a : ear_valid(c) ? c : valid_x ? x : kNone;
+  if (last == kNone) return false;
+  ears_.push_back({prev_[last], last, succ_[last]});
+  ear_shape_.push_back(valid_x ? score[x] : shape(x, a, c));
+  if ((flat_masks_[b] & flat_masks_[x]) != 0 ||
+      !(orient2d(flat_[c], flat_[x], flat_[b]) > kMinDoubleArea &&
+        orient2d(flat_[x], flat_[a], flat_[b]) > kMinDoubleArea)) {
+    return true;
+  }
+  // The flip's triangles (c, x, b) and (x, a, b): the ears of c and a.
+  const double shape_t = score[c] > -0.5 ? score[c] : shape(c, x, b);
+  const double shape_u = score[a] > -0.5 ? score[a] : shape(x, a, b);
+  if (flip_raises(std::min(ear_shape_[0], ear_shape_[1]), std::min(shape_t, shape_u))) {
+    ears_[0] = {c, x, b};
+    ears_[1] = {x, a, b};
+    ear_shape_[0] = shape_t;
+    ear_shape_[1] = shape_u;
+  }
   return true;
+}
+
+// Whether a flip from triangles of smallest shape `before` to `after` raises it enough.
+bool LoopTriangulator::flip_raises(double before, double after) {
+  return after > before * (1.0 + 1e-9) + 1e-12;
 }
 
 // Lawson flips on the triangulation in ears_ (loop positions): an inner edge whose quad
@@ -298,8 +371,7 @@ void LoopTriangulator::flip_for_shape() {
           const double before = std::min(ear_shape_[t], ear_shape_[u]);
           shape_t = shape(a, d, c);
           shape_u = shape(d, b, c);
-          const double after = std::min(shape_t, shape_u);
-          flip = after > before * (1.0 + 1e-9) + 1e-12;
+          flip = flip_raises(before, std::min(shape_t, shape_u));
         }
         if (!flip) {
           rejected(a, b) = {flip_stamp_, c, d};

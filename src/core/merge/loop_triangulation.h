@@ -56,6 +56,10 @@ class LoopTriangulator {
   bool ear_valid(std::uint32_t i) const;
   bool clip_ears(std::span<const VertexId> loop, std::span<const Position> positions,
                  std::vector<Triangle>& out);
+  bool clip_any();
+  bool clip_triangle();
+  bool clip_quad();
+  static bool flip_raises(double before, double after);
   void flip_for_shape();
 
   std::array<Vec3, 3> axes_;
