@@ -53,9 +53,7 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
       LocalTriangle local;
       local.id = id;
       for (int k = 0; k < 3; ++k) local.corner[k] = table_.add(t[k], faces);
-      // Two unions join the three corners.
-      table_.unite(local.corner[0], local.corner[1]);
-      table_.unite(local.corner[1], local.corner[2]);
+      table_.unite(local.corner[0], local.corner[1], local.corner[2]);
       for (int k = 0; k < 3; ++k) {
         const std::uint32_t a = local.corner[k];
         const std::uint32_t b = local.corner[(k + 1) % 3];

@@ -80,10 +80,20 @@ class LocalTable {
     }
     return v;
   }
+  // Each set's root is its smallest vertex.
   void unite(std::uint32_t a, std::uint32_t b) {
     a = find(a);
     b = find(b);
     if (a != b) parent_[std::max(a, b)] = std::min(a, b);
+  }
+  void unite(std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+    a = find(a);
+    b = find(b);
+    c = find(c);
+    const std::uint32_t root = std::min({a, b, c});
+    parent_[a] = root;
+    parent_[b] = root;
+    parent_[c] = root;
   }
 
   // Appends the loop of local vertices from `start` along next() to `loops` (as piece ids).
