@@ -462,13 +462,12 @@ class Extractor {
     }
     for (Index y = 0; y < height_; ++y) {
       std::uint8_t* in = slice.inside.data() + y * width_;
-      // A simple loop the compiler vectorises.
-      unsigned count = 0;
-      for (Index x = 0; x < width_; ++x) count += in[x];
       const auto row = static_cast<std::size_t>(y);
       slice.left[row] = in[0];
       slice.right[row] = in[width_ - 1];
-      if (count == 0 || count == static_cast<unsigned>(width_)) {
+      // No flag (0 or 1) other than the first's: the row has no cut x-edge (memchr scans a
+      // vector a step; the count of inside flags it replaces was 1.8 % of an abdomen extraction).
+      if (std::memchr(in, in[0] ^ 1, static_cast<std::size_t>(width_)) == nullptr) {
         slice.first_cut[row] = static_cast<std::int32_t>(width_ - 1);
         slice.last_cut[row] = -1;
         continue;
