@@ -6,6 +6,10 @@
 #include <cstdint>
 #include <limits>
 
+#if defined(__SSE2__)
+#include <xmmintrin.h>
+#endif
+
 namespace typemerge::core::merge {
 
 using VertexId = std::uint32_t;
@@ -45,20 +49,50 @@ inline bool one_cube(const Box& box) {
 
 // Face bits of positions on a box: bit 2a (low face) and 2a + 1 (high face) of axis a, with
 // the box's planes converted to float once (for the many vertices of one box). Marching cubes
-// places a vertex on a lattice plane exactly, so equality is the test.
+// places a vertex on a lattice plane exactly, so equality is the test. With SSE2 the six
+// comparisons are two vector ones (the same ordered equality as ==; a fourth lane of NaN
+// equals nothing): mask() ran for every vertex of every box tested, at about 38 instructions
+// scalar, 13 so.
 struct FaceTest {
-  std::array<float, 3> lo;
-  std::array<float, 3> hi;
   explicit FaceTest(const Box& box) {
+    std::array<float, 3> lo;
+    std::array<float, 3> hi;
     for (int a = 0; a < 3; ++a) {
       lo[a] = static_cast<float>(box.lo[a]);
       hi[a] = static_cast<float>(box.hi[a]);
     }
+#if defined(__SSE2__)
+    const float none = std::numeric_limits<float>::quiet_NaN();
+    lo_ = _mm_setr_ps(lo[0], lo[1], lo[2], none);
+    hi_ = _mm_setr_ps(hi[0], hi[1], hi[2], none);
+#else
+    lo_ = lo;
+    hi_ = hi;
+#endif
   }
   unsigned mask(const Position& p) const {
-    return (p[0] == lo[0] ? 1u : 0u) | (p[0] == hi[0] ? 2u : 0u) | (p[1] == lo[1] ? 4u : 0u) |
-           (p[1] == hi[1] ? 8u : 0u) | (p[2] == lo[2] ? 16u : 0u) | (p[2] == hi[2] ? 32u : 0u);
+#if defined(__SSE2__)
+    // p as the lanes (x, y, z, 0); each comparison's lane bits spread to the even bits.
+    const __m128 xy = _mm_loadl_pi(_mm_setzero_ps(), reinterpret_cast<const __m64*>(p.data()));
+    const __m128 v = _mm_movelh_ps(xy, _mm_load_ss(&p[2]));
+    static constexpr std::uint8_t kSpread[8] = {0, 1, 4, 5, 16, 17, 20, 21};
+    const auto low = static_cast<unsigned>(_mm_movemask_ps(_mm_cmpeq_ps(v, lo_)));
+    const auto high = static_cast<unsigned>(_mm_movemask_ps(_mm_cmpeq_ps(v, hi_)));
+    return kSpread[low] | kSpread[high] << 1u;
+#else
+    return (p[0] == lo_[0] ? 1u : 0u) | (p[0] == hi_[0] ? 2u : 0u) | (p[1] == lo_[1] ? 4u : 0u) |
+           (p[1] == hi_[1] ? 8u : 0u) | (p[2] == lo_[2] ? 16u : 0u) | (p[2] == hi_[2] ? 32u : 0u);
+#endif
   }
+
+ private:
+#if defined(__SSE2__)
+  __m128 lo_;
+  __m128 hi_;
+#else
+  std::array<float, 3> lo_;
+  std::array<float, 3> hi_;
+#endif
 };
 
 // Twice the signed area of the 2D triangle (a, b, c); > 0 when counter-clockwise.
