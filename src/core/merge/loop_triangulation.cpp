@@ -342,24 +342,25 @@ void LoopTriangulator::flip_for_shape() {
     return rejected_[static_cast<std::size_t>(x) * n + y];
   };
   for (std::size_t t = 0; t < count; ++t) {
-    for (int k = 0; k < 3; ++k) {
-      owner(ears_[t][k], ears_[t][(k + 1) % 3]) = static_cast<std::uint32_t>(t + 1);
-    }
+    const auto id = static_cast<std::uint32_t>(t + 1);
+    owner(ears_[t][0], ears_[t][1]) = id;
+    owner(ears_[t][1], ears_[t][2]) = id;
+    owner(ears_[t][2], ears_[t][0]) = id;
   }
   for (int round = 0; round < 4; ++round) {
     bool flipped = false;
     for (std::size_t t = 0; t < count; ++t) {
       for (int k = 0; k < 3; ++k) {
-        const std::uint32_t a = ears_[t][k];
-        const std::uint32_t b = ears_[t][(k + 1) % 3];
-        const std::uint32_t c = ears_[t][(k + 2) % 3];
+        const std::array<std::uint32_t, 3> triangle = ears_[t];  // as a flip below left it
+        const std::uint32_t a = triangle[k];
+        const std::uint32_t b = triangle[k == 2 ? 0 : k + 1];
+        const std::uint32_t c = triangle[k == 0 ? 2 : k - 1];
         const std::uint32_t across = owner(b, a);
         if (across == 0) continue;  // a loop edge
         const std::size_t u = across - 1;
-        std::uint32_t d = kNone;
-        for (int j = 0; j < 3; ++j) {
-          if (ears_[u][j] == b) d = ears_[u][(j + 2) % 3];
-        }
+        // The apex across: the corner after (b, a) in triangle u.
+        const std::array<std::uint32_t, 3>& other = ears_[u];
+        const std::uint32_t d = other[0] == b ? other[2] : other[1] == b ? other[0] : other[1];
         if ((flat_masks_[c] & flat_masks_[d]) != 0) continue;
         if (rejected(a, b) == std::array<std::uint32_t, 3>{flip_stamp_, c, d}) continue;
         // Quad a, d, b, c (counter-clockwise): the new triangles (a, d, c) and (d, b, c).
@@ -395,7 +396,9 @@ void LoopTriangulator::flip_for_shape() {
   }
   // Left zeroed for the next loop.
   for (const auto& triangle : ears_) {
-    for (int k = 0; k < 3; ++k) owner(triangle[k], triangle[(k + 1) % 3]) = 0;
+    owner(triangle[0], triangle[1]) = 0;
+    owner(triangle[1], triangle[2]) = 0;
+    owner(triangle[2], triangle[0]) = 0;
   }
 }
 
