@@ -95,6 +95,13 @@ class LocalTable {
     parent_[b] = root;
     parent_[c] = root;
   }
+  // Whether the vertices form one set (vertex 0's; no other root).
+  bool one_set() const {
+    for (std::uint32_t v = 1; v < count_; ++v) {
+      if (parent_[v] == v) return false;
+    }
+    return count_ > 0;
+  }
 
   // Appends the loop of local vertices from `start` along next() to `loops` (as piece ids).
   void append_loop(std::uint32_t start, std::vector<VertexId>& loops) const {
