@@ -71,14 +71,21 @@ bool LoopTriangulator::star_shaped_from_centroid() const {
   }
   c[0] /= static_cast<double>(n);
   c[1] /= static_cast<double>(n);
+  // Each vertex relative to c, once: orient2d(c, a, b) from these differences is the same
+  // arithmetic, and a[1] < c[1] exactly when a[1] − c[1] < 0.
+  auto from_c = [&](const std::array<double, 2>& p) {
+    return std::array<double, 2>{p[0] - c[0], p[1] - c[1]};
+  };
+  const std::array<double, 2> first = from_c(flat_[0]);
+  std::array<double, 2> a = first;
   std::size_t crossings = 0;  // edges crossing the horizontal line through c upward
   for (std::size_t i = 0; i < n; ++i) {
-    const auto& a = flat_[i];
-    const auto& b = flat_[i + 1 == n ? 0 : i + 1];
-    if (!(orient2d(c, a, b) > 0.0)) return false;
+    const std::array<double, 2> b = i + 1 == n ? first : from_c(flat_[i + 1]);
+    if (!(a[0] * b[1] - a[1] * b[0] > 0.0)) return false;
     // Counter-clockwise about c, an upward edge crosses that line right of c: the ray's
     // crossings are the loop's winding number about c.
-    if (a[1] < c[1] && b[1] >= c[1]) ++crossings;
+    if (a[1] < 0.0 && b[1] >= 0.0) ++crossings;
+    a = b;
   }
   return crossings == 1;
 }
