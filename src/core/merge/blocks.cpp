@@ -58,6 +58,7 @@ class BlockPass {
   MergeStats& stats_;
   std::vector<TriangleRun> runs_;
   std::vector<std::uint32_t> scratch_order_;
+  std::vector<std::uint8_t> scratch_octant_;  // test_block's octant of each cube, by position
   ComposedBlock composed_;
 };
 
@@ -167,13 +168,19 @@ bool BlockPass::test_block(std::span<std::uint32_t> cubes, const Box& box, const
     return (c.x >= box.lo[0] + half[0] ? 1 : 0) | (c.y >= box.lo[1] + half[1] ? 2 : 0) |
            (c.z >= box.lo[2] + half[2] ? 4 : 0);
   };
-  for (std::uint32_t cube : cubes) ++start[octant(cube) + 1];
-  for (int k = 1; k < 9; ++k) start[k] += start[k - 1];
   scratch_order_.assign(cubes.begin(), cubes.end());
+  scratch_octant_.resize(cubes.size());
+  for (std::size_t i = 0; i < cubes.size(); ++i) {
+    scratch_octant_[i] = static_cast<std::uint8_t>(octant(cubes[i]));
+    ++start[scratch_octant_[i] + 1];
+  }
+  for (int k = 1; k < 9; ++k) start[k] += start[k - 1];
   {
     std::array<std::size_t, 8> fill;
     std::copy_n(start.begin(), 8, fill.begin());
-    for (std::uint32_t cube : scratch_order_) cubes[fill[octant(cube)]++] = cube;
+    for (std::size_t i = 0; i < cubes.size(); ++i) {
+      cubes[fill[scratch_octant_[i]]++] = scratch_order_[i];
+    }
   }
   const std::size_t disks_before = store_.disks.size();
   bool all = true;
