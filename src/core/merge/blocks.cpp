@@ -66,6 +66,7 @@ void BlockPass::run(const Box& lattice, const Dims& block) {
   const std::span<const BoundaryCube> cubes = piece_.cubes;
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> bucket_start;
+  std::vector<std::size_t> bucket;  // of each cube of the layer
   const std::int32_t bx = (lattice.hi[0] - lattice.lo[0] + block[0] - 1) / block[0];
   const std::int32_t by = (lattice.hi[1] - lattice.lo[1] + block[1] - 1) / block[1];
   std::size_t c = 0;
@@ -80,13 +81,17 @@ void BlockPass::run(const Box& lattice, const Dims& block) {
       return static_cast<std::size_t>((cube.y - lattice.lo[1]) / block[1]) * bx +
              static_cast<std::size_t>((cube.x - lattice.lo[0]) / block[0]);
     };
-    for (std::size_t i = c; i < end; ++i) ++bucket_start[bucket_of(cubes[i]) + 1];
+    bucket.resize(end - c);
+    for (std::size_t i = c; i < end; ++i) {
+      bucket[i - c] = bucket_of(cubes[i]);
+      ++bucket_start[bucket[i - c] + 1];
+    }
     for (std::size_t b = 1; b < bucket_start.size(); ++b) bucket_start[b] += bucket_start[b - 1];
     order.resize(end - c);
     {
       std::vector<std::uint32_t> fill(bucket_start.begin(), bucket_start.end() - 1);
       for (std::size_t i = c; i < end; ++i) {
-        order[fill[bucket_of(cubes[i])]++] = static_cast<std::uint32_t>(i);
+        order[fill[bucket[i - c]]++] = static_cast<std::uint32_t>(i);
       }
     }
     for (std::size_t b = 0; b + 1 < bucket_start.size(); ++b) {
