@@ -176,8 +176,12 @@ void DiskTest::record(const Box& box, std::int32_t size, DiskStore& store,
     }
     return;
   }
+  bool any_kept = false;
   for (Component& c : components_) {
-    if (c.verdict != DiskVerdict::kDisk) continue;
+    if (c.verdict != DiskVerdict::kDisk) {
+      any_kept = true;
+      continue;
+    }
     MergedDisk disk;
     disk.box = box;
     disk.normal = c.normal;
@@ -192,7 +196,8 @@ void DiskTest::record(const Box& box, std::int32_t size, DiskStore& store,
     c.disk = static_cast<std::uint32_t>(store.disks.size());
     store.disks.push_back(disk);
   }
-  for (const LocalTriangle& t : local_triangles_) {
+  for (std::size_t k = 0; any_kept && k < local_triangles_.size(); ++k) {
+    const LocalTriangle& t = local_triangles_[k];
     if (components_[component_of_[t.corner[0]]].verdict != DiskVerdict::kDisk) {
       kept.push_back(triangles_[t.id]);
     }
