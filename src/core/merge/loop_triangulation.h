@@ -11,7 +11,10 @@
 // The shape rule: ears are clipped best smallest angle (in millimetres) first, then Lawson
 // flips raise the smallest angle of each pair where the quad is convex and the new edge obeys
 // the face rule; extremes() then counts the caps (an angle above 170°) and needles (below 1°)
-// made, which step 3 compares with marching cubes' triangles of the disk.
+// made, which step 3 compares with marching cubes' triangles of the disk. A loop of three or
+// four vertices takes its own path (clip_triangle, clip_quad), whose triangles, their order and
+// corners, and extremes are the general path's, bit for bit (checked against it on every such
+// loop of the real series).
 #pragma once
 
 #include <array>
