@@ -423,6 +423,4 @@ void LoopTriangulator::flip_for_shape() {
   }
 }
 
-// A marching-cubes triangle of the block, by block-local corners, with its area vector.
-
 }  // namespace typemerge::core::merge
