@@ -235,7 +235,7 @@ std::size_t count_differences(const std::uint8_t* a, const std::uint8_t* b, std:
 // first_cut = width − 1 and last_cut = −1, and left = right.
 // Elements default-initialised, not zeroed: a slice's samples and flags are all written by
 // load_slice, and vertex ids (of slices and z-edges) are read only on cut edges, where they
-// were written (zeroing them was 1.2 % of an abdomen extraction's instructions at 300 HU).
+// were written.
 template <typename T>
 class Scratch {
  public:
@@ -454,8 +454,7 @@ class Extractor {
 
   // Sample (x, y) (padded) of a slice: an int16 sample becomes the float of the same integer
   // here, as a float volume's sample is copied, so both storages give the same surface bit for
-  // bit (and the int16 samples are not copied: that was 2.8 % of an abdomen extraction's
-  // instructions at 300 HU, for the few samples at cut edges that are read).
+  // bit (and the int16 samples are not copied for the few at cut edges that are read).
   float value(const Slice& slice, Index x, Index y) const {
     if (slice.int16 == nullptr) return slice.values[static_cast<std::size_t>(x + width_ * y)];
     const VolumeSize& s = volume_.size();
@@ -512,7 +511,7 @@ class Extractor {
       slice.left[row] = in[0];
       slice.right[row] = in[width_ - 1];
       // No flag (0 or 1) other than the first's: the row has no cut x-edge (memchr scans a
-      // vector a step; the count of inside flags it replaces was 1.8 % of an abdomen extraction).
+      // vector a step, fewer instructions than counting the flags).
       if (std::memchr(in, in[0] ^ 1, static_cast<std::size_t>(width_)) == nullptr) {
         slice.first_cut[row] = static_cast<std::int32_t>(width_ - 1);
         slice.last_cut[row] = -1;

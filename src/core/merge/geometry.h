@@ -51,8 +51,7 @@ inline bool one_cube(const Box& box) {
 // the box's planes converted to float once (for the many vertices of one box). Marching cubes
 // places a vertex on a lattice plane exactly, so equality is the test. With SSE2 the six
 // comparisons are two vector ones (the same ordered equality as ==; a fourth lane of NaN
-// equals nothing): mask() ran for every vertex of every box tested, at about 38 instructions
-// scalar, 13 so.
+// equals nothing): mask() runs for every vertex of every box tested.
 struct FaceTest {
   explicit FaceTest(const Box& box) {
     std::array<float, 3> lo;
