@@ -233,6 +233,7 @@ TriangleMesh slab_wall(const Volume& field, float iso, const InnerWallOptions& o
   std::int64_t computed = 0;  // F holds slices [released, computed)
   std::int64_t released = 0;
   std::size_t below = 0;      // the previous piece's top slice vertices, in `inner`
+  detail::SurfacePiece piece;  // each piece is written into the previous one's arrays
   for (std::int64_t first = 0; first < layers; first += step) {
     const std::int64_t last = std::min(layers, first + step);
     // Layers [first, last) lie between padded slices first and last, volume slices first − 1
@@ -253,7 +254,8 @@ TriangleMesh slab_wall(const Volume& field, float iso, const InnerWallOptions& o
                                      distance.slice(computed), computed, need, size, band);
       computed = need;
     }
-    detail::SurfacePiece piece = detail::extract_layers(distance, level_f, extract, first, last);
+    piece = detail::extract_layers(distance, level_f, extract, first, last,
+                                   /*defer_normals=*/false, -1.0, &piece);
     // Stitch: the piece's first shared_vertices vertices are the previous piece's top slice.
     const std::size_t shared = piece.shared_vertices;
     const std::size_t base = inner.positions.size();
