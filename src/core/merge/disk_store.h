@@ -62,9 +62,10 @@ struct DiskStore {
   std::vector<RetiredPart> parts;
 
   // Empties every array, keeping its capacity, and reserves room for a piece of
-  // `piece_triangles` marching-cubes triangles and `piece_vertices` vertices (what CT surfaces need: every triangle
-  // in a disk, each vertex in about 2.6 disks' vertices and 2.4 loops, a disk for every
-  // five triangles; only the pages written are mapped).
+  // `piece_triangles` marching-cubes triangles and `piece_vertices` vertices: on CT surfaces
+  // every triangle is in a disk, each vertex in about 2.6 disks' vertices and 2.4 loops, and
+  // there is about a disk for every five triangles (room is kept for one every four). Only
+  // the pages written are mapped; a store that outgrows this grows as a vector does.
   void reset(std::size_t piece_triangles, std::size_t piece_vertices) {
     disks.clear();
     loops.clear();
