@@ -44,6 +44,7 @@
 #include <vector>
 
 #include "core/cube_tables.h"
+#include "core/huge_pages.h"
 #include "core/parallel.h"
 
 namespace typemerge::core {
@@ -395,7 +396,7 @@ class Extractor {
   void reserve_outputs(Index first, Index last, double expected) {
     const auto reserve = [](auto& v, double count) {
       try {
-        v.reserve(static_cast<std::size_t>(1.25 * count) + 64);
+        detail::reserve_on_huge_pages(v, static_cast<std::size_t>(1.25 * count) + 64);
       } catch (const std::bad_alloc&) {
       } catch (const std::length_error&) {
       }

@@ -15,6 +15,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/huge_pages.h"
 #include "core/merge/blocks.h"
 #include "core/merge/piece_merge.h"
 #include "core/parallel.h"
@@ -252,9 +253,9 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
           const auto ahead = [&](std::size_t n) {
             return std::max(n, static_cast<std::size_t>(scale * static_cast<double>(n)));
           };
-          out.positions.reserve(ahead(vertices));
-          if (extract.vertex_normals) out.normals.reserve(ahead(vertices));
-          out.triangles.reserve(ahead(triangles));
+          detail::reserve_on_huge_pages(out.positions, ahead(vertices));
+          if (extract.vertex_normals) detail::reserve_on_huge_pages(out.normals, ahead(vertices));
+          detail::reserve_on_huge_pages(out.triangles, ahead(triangles));
         }
         merge::append_piece(out, piece, seam);
         total += piece.stats;

@@ -5,36 +5,8 @@
 #include <new>
 #include <stdexcept>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#endif
 
 namespace typemerge::core {
-
-namespace detail {
-
-namespace {
-constexpr std::align_val_t kHugePage{std::size_t{2} << 20};
-}  // namespace
-
-void* allocate_samples(std::size_t bytes) {
-  if (bytes < kHugeBuffer) return ::operator new(bytes);
-  void* p = ::operator new(bytes, kHugePage);
-#if defined(__linux__) && defined(MADV_HUGEPAGE)
-  ::madvise(p, bytes, MADV_HUGEPAGE);  // advice only: where refused, 4 KiB pages as before
-#endif
-  return p;
-}
-
-void deallocate_samples(void* p, std::size_t bytes) noexcept {
-  if (bytes < kHugeBuffer) {
-    ::operator delete(p);
-  } else {
-    ::operator delete(p, kHugePage);
-  }
-}
-
-}  // namespace detail
 
 Vec3 IndexToPatient::apply(double i, double j, double k) const {
   Vec3 p = origin;

@@ -17,6 +17,8 @@
 #include <utility>
 #include <vector>
 
+#include "core/huge_pages.h"
+
 namespace typemerge::core {
 
 using Vec3 = std::array<double, 3>;
@@ -41,22 +43,11 @@ struct VolumeSize {
   bool operator==(const VolumeSize&) const = default;
 };
 
-namespace detail {
-// Storage of at least kHugeBuffer bytes is aligned to 2 MiB and, on Linux, advised for
-// transparent huge pages (madvise(MADV_HUGEPAGE), what the kernel's default "madvise" mode
-// waits for): a volume of 4 KiB pages is faulted in 4 KiB at a time, 77 k faults for 300 MiB,
-// a visible share of a conversion's CPU; with 2 MiB pages, 150 (the perf figure:
-// docs/benchmarks.md, "Moved from headers and the README"). Smaller storage comes from
-// operator new.
-inline constexpr std::size_t kHugeBuffer = std::size_t{8} << 20;
-void* allocate_samples(std::size_t bytes);
-void deallocate_samples(void* p, std::size_t bytes) noexcept;
-}  // namespace detail
 
 // An allocator whose new elements are left uninitialised (default-initialised), not zeroed:
 // value-initialising a volume is a serial memset that also faults every page in on one thread,
 // where the decoder threads write every sample anyway and fault their own pages in parallel.
-// Large storage is on huge pages (detail::allocate_samples).
+// Large storage is on huge pages (huge_pages.h).
 template <typename T>
 struct DefaultInitAllocator : std::allocator<T> {
   using value_type = T;
@@ -68,9 +59,9 @@ struct DefaultInitAllocator : std::allocator<T> {
   template <typename U>
   DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
   T* allocate(std::size_t n) {
-    return static_cast<T*>(detail::allocate_samples(n * sizeof(T)));
+    return static_cast<T*>(detail::allocate_on_huge_pages(n * sizeof(T)));
   }
-  void deallocate(T* p, std::size_t n) noexcept { detail::deallocate_samples(p, n * sizeof(T)); }
+  void deallocate(T* p, std::size_t n) noexcept { detail::deallocate_on_huge_pages(p, n * sizeof(T)); }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
     ::new (static_cast<void*>(p)) U;

@@ -9,6 +9,7 @@
 #include <span>
 #include <vector>
 
+#include "core/huge_pages.h"
 #include "core/merge/geometry.h"
 
 namespace typemerge::core::merge {
@@ -54,11 +55,12 @@ struct RetiredPart {
 };
 
 struct DiskStore {
-  std::vector<MergedDisk> disks;
-  std::vector<VertexId> loops;                 // each disk's loop, counter-clockwise about its normal
-  std::vector<std::uint32_t> triangles;        // the disks' marching-cubes triangles (ids)
-  std::vector<std::array<float, 3>> areas;     // their area vectors
-  std::vector<VertexId> vertices;              // the disks' marching-cubes vertices
+  // On huge pages: a fresh store faults its pages in as it is written (huge_pages.h).
+  detail::HugePageVector<MergedDisk> disks;
+  detail::HugePageVector<VertexId> loops;  // each disk's loop, counter-clockwise about its normal
+  detail::HugePageVector<std::uint32_t> triangles;     // the disks' marching-cubes triangles (ids)
+  detail::HugePageVector<std::array<float, 3>> areas;  // their area vectors
+  detail::HugePageVector<VertexId> vertices;           // the disks' marching-cubes vertices
   std::vector<RetiredPart> parts;
 
   // Empties every array, keeping its capacity, and reserves room for a piece of

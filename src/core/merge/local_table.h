@@ -104,7 +104,8 @@ class LocalTable {
   }
 
   // Appends the loop of local vertices from `start` along next() to `loops` (as piece ids).
-  void append_loop(std::uint32_t start, std::vector<VertexId>& loops) const {
+  template <typename Loops>  // a std::vector of VertexId, whatever its allocator
+  void append_loop(std::uint32_t start, Loops& loops) const {
     std::uint32_t v = start;
     do {
       loops.push_back(vertices_[v]);

@@ -17,6 +17,7 @@
 #include <span>
 #include <vector>
 
+#include "core/huge_pages.h"
 #include "core/merge/disk_store.h"
 #include "core/merge/geometry.h"
 #include "core/merge/tolerance.h"
@@ -40,8 +41,8 @@ class LoopOwners {
  private:
   std::span<const Position> positions_;
   const DiskStore& store_;
-  std::vector<std::array<std::uint32_t, 2>> disks_;
-  std::vector<std::uint8_t> count_;
+  detail::HugePageVector<std::array<std::uint32_t, 2>> disks_;
+  detail::HugePageVector<std::uint8_t> count_;
 };
 
 // Whether two positions lie on one lattice line (same edge axis, same other coordinates).

@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include "core/huge_pages.h"
 #include "core/merge/blocks.h"
 #include "core/merge/disk_store.h"
 #include "core/merge/disk_test.h"
@@ -30,7 +31,7 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
   LoopTriangulator triangulator(geometry.axes);
   store.reset(piece.mesh.triangles.size(), positions.size());
   std::vector<Triangle> out;
-  out.reserve(piece.mesh.triangles.size() / 2);
+  detail::reserve_on_huge_pages(out, piece.mesh.triangles.size() / 2);
 
   const Tolerance tolerance = options.epsilon_mm > 0.0
                                   ? Tolerance::in_mm(options.epsilon_mm, geometry.axes)
@@ -78,8 +79,8 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
     for (VertexId v : t) new_id[v] = 0;
   }
   const auto kept = static_cast<std::size_t>(std::count(new_id.begin(), new_id.end(), 0));
-  out.mesh.positions.reserve(kept);
-  if (normals) out.mesh.normals.reserve(kept);
+  detail::reserve_on_huge_pages(out.mesh.positions, kept);
+  if (normals) detail::reserve_on_huge_pages(out.mesh.normals, kept);
   VertexId next = 0;
   for (VertexId v = 0; v < new_id.size(); ++v) {
     if (new_id[v] == 0) {
