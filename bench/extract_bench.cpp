@@ -26,7 +26,8 @@
 // identical samples; --vtk does that itself (int16 samples where the volume is integral, as
 // VTK would read a CT) and prints, per iso, mc and tm on one thread against
 // vtkFlyingEdges3D on one thread, and tm's two-thread speed-up, all from this one run
-// (needs python3-vtk9 and python3-numpy; --vtk-python to choose the interpreter).
+// (the speed-up from one- and two-thread runs in alternation, the median of their pairs' ratios,
+// whenever --threads lists 2; needs python3-vtk9 and python3-numpy; --vtk-python to choose the interpreter).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -187,6 +188,7 @@ int main(int argc, char** argv) {
   }
   // Per iso: one-thread mc and tm, two-thread tm (ms), for the ratios to VTK.
   std::map<std::string, std::array<double, 3>> figures;
+  std::map<std::string, double> scaling;  // tm: median of one thread / two threads, in pairs
   const auto& size = volume.size();
   const double cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
   std::printf("volume: %s, %lldx%lldx%lld (%.1f M cells, %.0f MiB of %s samples)\n",
@@ -247,7 +249,38 @@ int main(int argc, char** argv) {
         if (thread_text == "1" && (algorithm == "mc" || merged)) {
           figures[iso_text][merged ? 1 : 0] = median;
         }
-        if (thread_text == "2" && merged) figures[iso_text][2] = median;
+        if (thread_text == "2" && merged) {
+          figures[iso_text][2] = median;
+          // Two threads against one, timed in alternation and taken pair by pair: the
+          // medians above are minutes apart, and a host whose speed drifts in between moves
+          // their ratio more than threads do.
+          std::vector<double> ratios;
+          for (int r = 0; r < repeat; ++r) {
+            double pair_ms[2];
+            for (unsigned t : {1u, 2u}) {
+              core::ExtractOptions alone = options;
+              alone.threads = t;
+              core::MergeOptions merge_alone = merge;
+              merge_alone.threads = t;
+              mesh = {};
+              const auto start = std::chrono::steady_clock::now();
+              mesh = core::extract_type_merged(volume, iso, alone, merge_alone);
+              pair_ms[t - 1] = std::chrono::duration<double, std::milli>(
+                                   std::chrono::steady_clock::now() - start)
+                                   .count();
+            }
+            ratios.push_back(pair_ms[0] / pair_ms[1]);
+          }
+          scaling[iso_text] = median_ms(ratios);
+          std::string listed;
+          for (double ratio : ratios) {
+            char text[16];
+            std::snprintf(text, sizeof text, "%s%.2f", listed.empty() ? "" : ", ", ratio);
+            listed += text;
+          }
+          std::printf("    tm one thread / two threads, %d alternating pairs: median %.2f (%s)\n",
+                      repeat, scaling[iso_text], listed.c_str());
+        }
         const core::MeshCheck check = core::check_mesh(mesh);
         std::printf("%-8s %-8s %3s %10.1f %10.1f %11zu %10zu %10.1f %9zu %9zu %9zu\n",
                     iso_text.c_str(), algorithm.c_str(), thread_text.c_str(), median,
@@ -352,9 +385,10 @@ int main(int argc, char** argv) {
     for (const auto& [iso_text, f] : figures) {
       const auto fe = flying_edges.find(std::stod(iso_text));
       if (fe == flying_edges.end()) continue;
+      const auto pairs = scaling.find(iso_text);
       std::printf("%-8s %10.1f %10.1f %10.1f %10.2f %10.2f %12.2f\n", iso_text.c_str(),
                   fe->second, f[0], f[1], f[0] / fe->second, f[1] / fe->second,
-                  f[2] > 0 ? f[1] / f[2] : 0.0);
+                  pairs != scaling.end() ? pairs->second : 0.0);
     }
   }
   return 0;
