@@ -93,12 +93,15 @@ void visit_nearest(std::span<const std::array<float, 3>> points, const TriangleM
     std::uint32_t& query = queries[w];
     if (stamp.empty()) stamp.assign(to.triangles.size(), 0);
     const std::size_t end = std::min(points.size(), (k + 1) * kNearestChunk);
+    // Points in order lie near each other (a mesh's vertices, a triangle's samples), so each
+    // search starts from the previous point's nearest triangle; the distances are the same.
+    std::uint32_t hint = std::numeric_limits<std::uint32_t>::max();
     for (std::size_t v = k * kNearestChunk; v < end; ++v) {
       if (++query == 0) {  // wrapped: reset the stamps
         std::fill(stamp.begin(), stamp.end(), 0);
         query = 1;
       }
-      visit(k, v, std::sqrt(grid.nearest_squared(to_p3(points[v]), stamp, query, cap)));
+      visit(k, v, std::sqrt(grid.nearest_squared_from(to_p3(points[v]), stamp, query, cap, hint)));
     }
   });
 }

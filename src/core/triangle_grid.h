@@ -89,11 +89,35 @@ class TriangleGrid {
   double nearest_squared(const Point3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,
                          double cap = std::numeric_limits<double>::infinity(),
                          std::uint32_t* which = nullptr, double enough = 0.0) const {
+    return search(p, stamp, query, cap * cap, which, enough);
+  }
+
+  // nearest_squared (with `cap`), seeded with triangle `hint` (a triangle index, or any larger
+  // value for none): its distance bounds the search before the first cell, so a query near the
+  // previous one, given that one's nearest triangle, visits few cells. The result is the same
+  // as without the seed; `hint` becomes the nearest triangle (unchanged when none is nearer
+  // than cap).
+  double nearest_squared_from(const Point3& p, std::vector<std::uint32_t>& stamp,
+                              std::uint32_t query, double cap, std::uint32_t& hint) const {
+    double best = cap * cap;
+    if (hint < mesh_.triangles.size()) {
+      stamp[hint] = query;
+      const auto& tri = mesh_.triangles[hint];
+      best = std::min(best, point_triangle_distance_squared(p, as_point3(mesh_.positions[tri[0]]),
+                                                             as_point3(mesh_.positions[tri[1]]),
+                                                             as_point3(mesh_.positions[tri[2]])));
+    }
+    return search(p, stamp, query, best, &hint, 0.0);
+  }
+
+ private:
+  // The shell search from the cell of p, with `best` the squared distance to beat.
+  double search(const Point3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,
+                double best, std::uint32_t* which, double enough) const {
     std::array<int, 3> c{};
     for (int a = 0; a < 3; ++a) {
       c[a] = std::clamp(static_cast<int>(std::floor((p[a] - lo_[a]) / cell_)), 0, dims_[a] - 1);
     }
-    double best = cap * cap;
     const int max_ring = std::max({dims_[0], dims_[1], dims_[2]});
     for (int r = 0; r <= max_ring; ++r) {
       // The shell of cells at Chebyshev distance r from c, clipped to the grid.
@@ -133,7 +157,6 @@ class TriangleGrid {
     return best;
   }
 
- private:
   template <typename F>
   void for_each_cell_of_triangles(const F& f) const {
     for (std::uint32_t t = 0; t < mesh_.triangles.size(); ++t) {

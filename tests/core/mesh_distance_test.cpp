@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/marching_cubes.h"
+#include "core/triangle_grid.h"
 #include "core/type_merging.h"
 #include "test_volumes.h"
 
@@ -114,6 +115,39 @@ TEST(MeshDistance, MatchesBruteForceOnMergedSurfaces) {
   EXPECT_LE(max_vertex_distance(mc, tm), MergeOptions{}.epsilon_voxels);
   const SymmetricMeshDistance both = mesh_distance(mc, tm, 1);
   EXPECT_DOUBLE_EQ(both.hausdorff(), std::max(brute_force(mc, tm).max, brute_force(tm, mc).max));
+}
+
+// A search seeded with any triangle (the nearest, a far one, none) finds what the unseeded
+// search finds, and leaves the nearest triangle as the next seed.
+TEST(MeshDistance, SeededSearchMatchesTheUnseededOne) {
+  const Volume volume = test::sphere_volume(26, 9.7, 12.3, 12.6, 12.1);
+  const TriangleMesh mesh = extract_type_merged(volume, 0.0f);
+  const detail::TriangleGrid grid(mesh);
+  std::vector<std::uint32_t> stamp(mesh.triangles.size(), 0);
+  std::uint32_t query = 0;
+  const auto count = static_cast<std::uint32_t>(mesh.triangles.size());
+  for (int i = 0; i < 300; ++i) {
+    const double a = 0.37 * i, b = 0.11 * i, r = 0.06 * i;
+    const detail::Point3 p = {12.3 + r * std::cos(a) * std::sin(b),
+                              12.6 + r * std::sin(a) * std::sin(b), 12.1 + r * std::cos(b)};
+    std::uint32_t nearest = count;
+    const double plain = grid.nearest_squared(p, stamp, ++query,
+                                              std::numeric_limits<double>::infinity(), &nearest);
+    ASSERT_LT(nearest, count);
+    for (std::uint32_t seed : {nearest, (nearest + count / 2) % count, 0u, count, ~0u}) {
+      std::uint32_t hint = seed;
+      EXPECT_EQ(grid.nearest_squared_from(p, stamp, ++query,
+                                          std::numeric_limits<double>::infinity(), hint),
+                plain)
+          << i << " seed " << seed;
+      ASSERT_LT(hint, count);
+      const auto& t = mesh.triangles[hint];
+      EXPECT_EQ(detail::point_triangle_distance_squared(p, detail::as_point3(mesh.positions[t[0]]),
+                                                        detail::as_point3(mesh.positions[t[1]]),
+                                                        detail::as_point3(mesh.positions[t[2]])),
+                plain);
+    }
+  }
 }
 
 TEST(MeshDistance, SameForAnyThreadCount) {
