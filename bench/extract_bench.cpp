@@ -26,8 +26,9 @@
 // identical samples; --vtk does that itself (int16 samples where the volume is integral, as
 // VTK would read a CT) and prints, per iso, mc and tm on one thread against
 // vtkFlyingEdges3D on one thread, and tm's two-thread speed-up, all from this one run
-// (the speed-up from one- and two-thread runs in alternation, the median of their pairs' ratios,
-// whenever --threads lists 2; needs python3-vtk9 and python3-numpy; --vtk-python to choose the interpreter).
+// (the speed-up from one- and two-thread runs in alternation, the median of their pairs'
+// ratios, whenever --threads lists 2; needs python3-vtk9 and python3-numpy; --vtk-python to
+// choose the interpreter).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -186,8 +187,8 @@ int main(int argc, char** argv) {
     io::write_nrrd(volume, nrrd_out,
                    integral ? io::NrrdSampleType::int16 : io::NrrdSampleType::float32);
   }
-  // Per iso: one-thread mc and tm, two-thread tm (ms), for the ratios to VTK.
-  std::map<std::string, std::array<double, 3>> figures;
+  // Per iso: one-thread mc and tm (ms), for the ratios to VTK.
+  std::map<std::string, std::array<double, 2>> figures;
   std::map<std::string, double> scaling;  // tm: median of one thread / two threads, in pairs
   const auto& size = volume.size();
   const double cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
@@ -250,7 +251,6 @@ int main(int argc, char** argv) {
           figures[iso_text][merged ? 1 : 0] = median;
         }
         if (thread_text == "2" && merged) {
-          figures[iso_text][2] = median;
           // Two threads against one, timed in alternation and taken pair by pair: the
           // medians above are minutes apart, and a host whose speed drifts in between moves
           // their ratio more than threads do.

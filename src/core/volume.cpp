@@ -2,9 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <new>
 #include <stdexcept>
-
 
 namespace typemerge::core {
 

@@ -43,7 +43,6 @@ struct VolumeSize {
   bool operator==(const VolumeSize&) const = default;
 };
 
-
 // An allocator whose new elements are left uninitialised (default-initialised), not zeroed:
 // value-initialising a volume is a serial memset that also faults every page in on one thread,
 // where the decoder threads write every sample anyway and fault their own pages in parallel.
@@ -61,7 +60,9 @@ struct DefaultInitAllocator : std::allocator<T> {
   T* allocate(std::size_t n) {
     return static_cast<T*>(detail::allocate_on_huge_pages(n * sizeof(T)));
   }
-  void deallocate(T* p, std::size_t n) noexcept { detail::deallocate_on_huge_pages(p, n * sizeof(T)); }
+  void deallocate(T* p, std::size_t n) noexcept {
+    detail::deallocate_on_huge_pages(p, n * sizeof(T));
+  }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
     ::new (static_cast<void*>(p)) U;
