@@ -234,25 +234,29 @@ std::size_t count_differences(const std::uint8_t* a, const std::uint8_t* b, std:
 // Row trim of row y: samples x <= first_cut[y] are all `left[y]`, samples x > last_cut[y] are
 // all `right[y]` (the cut x-edges lie in [first_cut, last_cut]); a row without a cut has
 // first_cut = width − 1 and last_cut = −1, and left = right.
-// Elements default-initialised, not zeroed: a slice's samples and flags are all written by
+// Arrays are views into the extractor's SliceBuffers, not initialised: a slice's samples (but
+// a padding slice's, all kPadding, which are not stored) and flags are all written by
 // load_slice, and vertex ids (of slices and z-edges) are read only on cut edges, where they
 // were written.
 template <typename T>
 class Scratch {
  public:
-  void resize(std::size_t n) {
-    data_ = std::make_unique_for_overwrite<T[]>(n);
+  // Views n elements at `data`; returns the byte just past them, rounded up to a cache line.
+  std::byte* place(std::byte* data, std::size_t n) {
+    data_ = reinterpret_cast<T*>(data);
     size_ = n;
+    constexpr std::size_t kLine = 64;
+    return data + (n * sizeof(T) + kLine - 1) / kLine * kLine;
   }
-  T* data() { return data_.get(); }
-  const T* data() const { return data_.get(); }
-  T* begin() { return data_.get(); }
-  T* end() { return data_.get() + size_; }
+  T* data() { return data_; }
+  const T* data() const { return data_; }
+  T* begin() { return data_; }
+  T* end() { return data_ + size_; }
   T& operator[](std::size_t i) { return data_[i]; }
   const T& operator[](std::size_t i) const { return data_[i]; }
 
  private:
-  std::unique_ptr<T[]> data_;
+  T* data_ = nullptr;
   std::size_t size_ = 0;
 };
 
@@ -261,6 +265,7 @@ struct Slice {
   // unpadded), read through Extractor::value.
   Scratch<float> values;
   const std::int16_t* int16 = nullptr;
+  bool padding = false;  // a padding slice (close_borders): every sample kPadding, `values` unset
   Scratch<std::uint8_t> inside;
   Scratch<VertexId> x_vertex;
   Scratch<VertexId> y_vertex;
@@ -269,15 +274,19 @@ struct Slice {
   std::vector<std::uint8_t> left;
   std::vector<std::uint8_t> right;
 
-  void resize(std::size_t n, std::size_t rows) {
-    values.resize(n);
-    inside.resize(n);
-    x_vertex.resize(n);
-    y_vertex.resize(n);
+  // Bytes place() takes for slices of n samples (cache lines rounded up), without `values`.
+  static std::size_t bytes(std::size_t n) { return 9 * n + 3 * 64; }
+
+  // Views its arrays but `values` from `block` on; returns the byte just past them.
+  std::byte* place(std::byte* block, std::size_t n, std::size_t rows) {
+    block = x_vertex.place(block, n);
+    block = y_vertex.place(block, n);
+    block = inside.place(block, n);
     first_cut.resize(rows);
     last_cut.resize(rows);
     left.resize(rows);
     right.resize(rows);
+    return block;
   }
 };
 
@@ -336,11 +345,19 @@ class Extractor {
   // slab below: they get the local ids 0..shared_vertices_ − 1 and are not part of the output.
   void run(Index first, Index last, double expected_vertices = -1.0) {
     const std::size_t n = static_cast<std::size_t>(width_ * height_);
+    const auto rows = static_cast<std::size_t>(height_);
+    if (!buffers_) buffers_ = std::make_shared<detail::SliceBuffers>();
+    // The float samples (a float volume's only: an int16 volume's are read where they are
+    // stored, and padding slices store none) last, after the ids and flags every volume writes.
+    const bool floats = !volume_.holds_int16();
+    const std::size_t value_bytes = floats ? 2 * (4 * n + 64) : 0;
+    std::byte* block = buffers_->reserve(4 * n + 64 + 2 * Slice::bytes(n) + value_bytes);
     Slice lower;
     Slice upper;
-    lower.resize(n, static_cast<std::size_t>(height_));
-    upper.resize(n, static_cast<std::size_t>(height_));
-    z_vertex_.resize(n);
+    block = z_vertex_.place(block, n);
+    block = lower.place(block, n, rows);
+    block = upper.place(block, n, rows);
+    if (floats) upper.values.place(lower.values.place(block, n), n);
     codes_.resize(static_cast<std::size_t>(width_));
 
     reserve_outputs(first, last, expected_vertices);
@@ -370,6 +387,7 @@ class Extractor {
     take(vertex_edges_, old.vertex_edges);
     take(centroid_normals_, old.centroid_normals);
     take(cubes_, old.cubes);
+    buffers_ = std::move(old.slice_buffers);
   }
 
   TriangleMesh& mesh() { return mesh_; }
@@ -377,6 +395,7 @@ class Extractor {
   std::vector<std::array<float, 3>>& centroid_normals() { return centroid_normals_; }
   const AmbiguityStats& stats() const { return stats_; }
   std::vector<BoundaryCube>& cubes() { return cubes_; }
+  std::shared_ptr<detail::SliceBuffers>& slice_buffers() { return buffers_; }
   std::size_t shared_vertices() const { return shared_vertices_; }
   std::size_t last_slice_first_vertex() const { return last_slice_first_vertex_; }
   std::size_t last_slice_end_vertex() const { return last_slice_end_vertex_; }
@@ -457,7 +476,9 @@ class Extractor {
   // here, as a float volume's sample is copied, so both storages give the same surface bit for
   // bit (and the int16 samples are not copied for the few at cut edges that are read).
   float value(const Slice& slice, Index x, Index y) const {
-    if (slice.int16 == nullptr) return slice.values[static_cast<std::size_t>(x + width_ * y)];
+    if (slice.int16 == nullptr) {
+      return slice.padding ? kPadding : slice.values[static_cast<std::size_t>(x + width_ * y)];
+    }
     const VolumeSize& s = volume_.size();
     const Index vx = x - pad_;
     const Index vy = y - pad_;
@@ -470,7 +491,8 @@ class Extractor {
     const VolumeSize& s = volume_.size();
     const Index k = pz - pad_;
     slice.int16 = nullptr;
-    if (k >= 0 && k < s.nz) {
+    slice.padding = k < 0 || k >= s.nz;
+    if (!slice.padding) {
       // The samples are classified where they are stored (int16 ones in int16, twice as many
       // a vector step).
       const std::uint8_t padding_inside = kPadding >= iso_ ? 1 : 0;
@@ -502,7 +524,6 @@ class Extractor {
         }
       });
     } else {
-      std::fill(slice.values.begin(), slice.values.end(), kPadding);
       std::fill(slice.inside.begin(), slice.inside.end(),
                 std::uint8_t{kPadding >= iso_ ? std::uint8_t{1} : std::uint8_t{0}});
     }
@@ -773,6 +794,7 @@ class Extractor {
   const std::uint8_t* decided_faces_ = nullptr;
   std::array<int, kCubeEdgeCount> edge_array_{};
   std::array<Index, kCubeEdgeCount> edge_offset_{};
+  std::shared_ptr<detail::SliceBuffers> buffers_;  // the slices' and z_vertex_'s arrays
   Scratch<VertexId> z_vertex_;
   std::vector<std::uint8_t> codes_;  // cube indices of the current cube row
   TriangleMesh mesh_;
@@ -890,6 +912,16 @@ std::array<float, 3> deferred_vertex_normal(
                    : edge_normal(volume, p_hi, p_lo, axis, t);
 }
 
+std::byte* SliceBuffers::reserve(std::size_t bytes) {
+  if (bytes > bytes_) {
+    block_.reset();
+    bytes_ = 0;
+    block_ = std::make_unique_for_overwrite<std::byte[]>(bytes);
+    bytes_ = bytes;
+  }
+  return block_.get();
+}
+
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals,
                             double expected_vertices, SurfacePiece* recycled) {
@@ -909,6 +941,7 @@ SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOption
   piece.vertex_edges = std::move(extractor.vertex_edges());
   piece.centroid_normals = std::move(extractor.centroid_normals());
   piece.cubes = std::move(extractor.cubes());
+  piece.slice_buffers = std::move(extractor.slice_buffers());
   piece.stats = extractor.stats();
   piece.shared_vertices = extractor.shared_vertices();
   piece.top_first = extractor.last_slice_first_vertex();

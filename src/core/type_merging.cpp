@@ -209,8 +209,9 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   const std::int64_t layers = detail::cube_layer_count(volume, iso, extract);
   const unsigned threads = std::max(detail::resolve_threads(options.threads),
                                     detail::resolve_threads(extract.threads));
-  // The estimate that cut the pieces also sizes their marching cubes' outputs (sampling the
-  // layers again for that was 3.5 % of an abdomen extraction's instructions at 300 HU).
+  // The estimate that cut the pieces also sizes their marching cubes' outputs, all for the
+  // largest piece (sampling the layers again for that was 3.5 % of an abdomen extraction's
+  // instructions at 300 HU).
   std::vector<double> expected_vertices;
   const std::vector<std::int64_t> bounds =
       detail::piece_bounds(volume, iso, extract, options, layers, threads, &expected_vertices);
@@ -220,24 +221,39 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   // not copied by doubling at its largest.
   std::vector<merge::VertexId> seam;
   // Scratch for the pieces being merged: taken while one is, given back after (at most one
-  // per thread exists; freed after the last pieces, while the output is at its largest).
+  // per thread exists; freed after the last pieces, while the output is at its largest), with
+  // the mesh arrays of pieces already appended. Every piece reserves for the largest estimate,
+  // so a thread's scratch is not outgrown (and its pages faulted anew) by a later piece.
   std::mutex scratch_mutex;
   std::vector<std::unique_ptr<merge::PieceScratch>> spare;
+  std::vector<TriangleMesh> spent;
+  std::size_t started = 0;
+  const double largest =
+      expected_vertices.empty()
+          ? -1.0
+          : *std::max_element(expected_vertices.begin(), expected_vertices.end());
   detail::make_in_order<merge::MergedPiece>(
       count, threads,
       [&](std::size_t i) {
         std::unique_ptr<merge::PieceScratch> scratch;
+        TriangleMesh output;
         {
           const std::lock_guard lock(scratch_mutex);
+          ++started;
           if (!spare.empty()) {
             scratch = std::move(spare.back());
             spare.pop_back();
           }
+          if (!spent.empty()) {
+            output = std::move(spent.back());
+            spent.pop_back();
+          }
         }
         if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
-        merge::MergedPiece piece =
-            merge::merge_piece(volume, iso, extract, options, bounds[i], bounds[i + 1], *scratch,
-                               i < expected_vertices.size() ? expected_vertices[i] : -1.0);
+        scratch->output = std::move(output);
+        scratch->keep = i + threads < count;
+        merge::MergedPiece piece = merge::merge_piece(volume, iso, extract, options, bounds[i],
+                                                      bounds[i + 1], *scratch, largest);
         if (i + threads < count) {  // else freed now: the last pieces need no more
           const std::lock_guard lock(scratch_mutex);
           spare.push_back(std::move(scratch));
@@ -258,6 +274,10 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
           detail::reserve_on_huge_pages(out.triangles, ahead(triangles));
         }
         merge::append_piece(out, piece, seam);
+        {
+          const std::lock_guard lock(scratch_mutex);
+          if (started < count) spent.push_back(std::move(piece.mesh));
+        }
         total += piece.stats;
         if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
       });

@@ -84,11 +84,16 @@
 // 12, cube records 20 per cube) + the merge's state (18 bytes per vertex; per merged MC
 // triangle its id and float area vector, 16 bytes; 4 bytes per merged vertex; the disks'
 // loops, and a 44-byte record per part for step 3's fallback, its loop rebuilt only if it is
-// needed; the block being tested, ~40 bytes per corner of its triangles) + 31 bytes × the
-// padded slice area (the extractor's buffers) — flat in the number of slices; with T threads
-// up to T + 1 pieces exist. The output is the same for every thread count; it depends on
-// slab_layers, block_cubes, blocks_follow_spacing and the grid's spacing (no box crosses a
-// seam: seams cost some reduction).
+// needed; the block being tested, ~40 bytes per corner of its triangles) + 31 bytes (22 for
+// int16 samples) × the padded slice area (the extractor's buffers) — flat in the number of
+// slices; with T threads up to T + 1 pieces exist. Each thread keeps these arrays from piece
+// to piece (sized for the largest piece's estimate; a thread's last piece frees the slice
+// buffers and the merge's per-vertex arrays early) and the arrays of pieces already appended
+// are written again, so pages are mapped once per thread, not once per piece
+// (merge/piece_merge.h, PieceScratch).
+// The output is the same for every thread count; it depends on slab_layers, block_cubes,
+// blocks_follow_spacing and the grid's spacing (no box crosses a seam: seams cost some
+// reduction).
 #pragma once
 
 #include <array>

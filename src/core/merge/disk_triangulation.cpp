@@ -14,7 +14,8 @@ class DiskTriangulation {
  public:
   DiskTriangulation(const PieceSurface& piece, const std::array<Vec3, 3>& axes,
                     const LoopOwners& owners, DiskStore& store, std::vector<std::uint8_t>& state,
-                    LocalTable& table, LoopTriangulator& triangulator, MergeStats& stats)
+                    LocalTable& table, LoopTriangulator& triangulator, std::vector<Triangle>& made,
+                    MergeStats& stats)
       : positions_(piece.mesh.positions),
         triangles_(piece.mesh.triangles),
         axes_(axes),
@@ -23,7 +24,10 @@ class DiskTriangulation {
         state_(state),
         table_(table),
         triangulator_(triangulator),
-        stats_(stats) {}
+        made_(made),
+        stats_(stats) {
+    made_.clear();
+  }
 
   void run(std::vector<Triangle>& out);
 
@@ -41,8 +45,8 @@ class DiskTriangulation {
   std::vector<std::uint8_t>& state_;
   LocalTable& table_;
   LoopTriangulator& triangulator_;
+  std::vector<Triangle>& made_;  // the disks' new triangles
   MergeStats& stats_;
-  std::vector<Triangle> made_;  // the disks' new triangles
 };
 
 // Gives back every thinned vertex of the disk's loop; the other disk of each (the only other
@@ -198,9 +202,9 @@ bool DiskTriangulation::shape_as_good(const MergedDisk& disk) const {
 void triangulate_disks(const PieceSurface& piece, const std::array<Vec3, 3>& axes,
                        const LoopOwners& owners, DiskStore& store,
                        std::vector<std::uint8_t>& state, LocalTable& table,
-                       LoopTriangulator& triangulator, std::vector<Triangle>& out,
-                       MergeStats& stats) {
-  DiskTriangulation(piece, axes, owners, store, state, table, triangulator, stats).run(out);
+                       LoopTriangulator& triangulator, std::vector<Triangle>& made,
+                       std::vector<Triangle>& out, MergeStats& stats) {
+  DiskTriangulation(piece, axes, owners, store, state, table, triangulator, made, stats).run(out);
 }
 
 }  // namespace typemerge::core::merge

@@ -30,11 +30,12 @@ namespace typemerge::core::merge {
 // marching cubes' for a demoted one) to `out`, in disk order. Reads and writes `state`
 // (vertices given back become kKept), may append parts to the store; counts the merged disks
 // by size, the demoted and split ones, the vertices restored and the passes in `stats`.
-// `axes`: one index step in mm (IndexToPatient::axes), where shapes are judged.
+// `axes`: one index step in mm (IndexToPatient::axes), where shapes are judged. `made`:
+// scratch for the disks' new triangles (emptied first, its capacity kept for the next piece).
 void triangulate_disks(const PieceSurface& piece, const std::array<Vec3, 3>& axes,
                        const LoopOwners& owners, DiskStore& store,
                        std::vector<std::uint8_t>& state, LocalTable& table,
-                       LoopTriangulator& triangulator, std::vector<Triangle>& out,
-                       MergeStats& stats);
+                       LoopTriangulator& triangulator, std::vector<Triangle>& made,
+                       std::vector<Triangle>& out, MergeStats& stats);
 
 }  // namespace typemerge::core::merge

@@ -17,9 +17,21 @@ namespace typemerge::core::merge {
 
 class LocalTable {
  public:
+  LocalTable() = default;
   // For the vertices of a piece, at `positions` (index space).
-  explicit LocalTable(std::span<const Position> positions)
-      : positions_of_piece_(positions), stamp_(positions.size(), 0), local_(positions.size(), 0) {}
+  explicit LocalTable(std::span<const Position> positions) { reset(positions); }
+
+  // For another piece's vertices: as newly made, its arrays' capacity kept and room made for
+  // `room` vertices (a thread merging piece after piece maps their pages once).
+  void reset(std::span<const Position> positions, std::size_t room = 0) {
+    positions_of_piece_ = positions;
+    stamp_.reserve(room);
+    local_.reserve(room);
+    stamp_.assign(positions.size(), 0);
+    local_.assign(positions.size(), 0);
+    visit_ = 0;
+    count_ = 0;
+  }
 
   // A new stamp for the piece's vertices: after it, seen() is false for every vertex.
   void new_visit() {

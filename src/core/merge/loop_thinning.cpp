@@ -9,14 +9,18 @@
 namespace typemerge::core::merge {
 
 LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& store)
-    : positions_(positions),
-      store_(store),
-      disks_(positions.size(), {kNone, kNone}),
-      count_(positions.size(), 0) {
+    : LoopOwners(positions, store, own_) {}
+
+LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& store,
+                       Arrays& arrays)
+    : positions_(positions), store_(store), disks_(arrays.disks), count_(arrays.count) {
+  arrays.disks.assign(positions.size(), {kNone, kNone});
+  arrays.count.assign(positions.size(), 0);
   for (std::uint32_t id = 0; id < store.disks.size(); ++id) {
     for (VertexId v : store.loop_of(store.disks[id])) {
-      if (count_[v] < 2) disks_[v][count_[v]] = id;
-      if (count_[v] < 255) ++count_[v];
+      std::uint8_t& count = arrays.count[v];
+      if (count < 2) arrays.disks[v][count] = id;
+      if (count < 255) ++count;
     }
   }
 }

@@ -32,7 +32,18 @@ enum VertexState : std::uint8_t { kOpen = 0, kRemoved = 1, kKept = 2 };
 // in the store when it is made.
 class LoopOwners {
  public:
+  // Its per-vertex arrays, which a caller can keep from piece to piece (their pages mapped
+  // once).
+  struct Arrays {
+    detail::HugePageVector<std::array<std::uint32_t, 2>> disks;
+    detail::HugePageVector<std::uint8_t> count;
+  };
+
   LoopOwners(std::span<const Position> positions, const DiskStore& store);
+  // The same, written into `arrays` (emptied first), which must outlive it.
+  LoopOwners(std::span<const Position> positions, const DiskStore& store, Arrays& arrays);
+  LoopOwners(const LoopOwners&) = delete;
+  LoopOwners& operator=(const LoopOwners&) = delete;
   // The other disk when v lies inside a face shared by disk `self` and exactly one other:
   // the loops of exactly two disks pass through v, and v is inside a face (on no edge) of
   // both boxes, so the four cubes around v's lattice edge are theirs. Else kNone.
@@ -41,8 +52,9 @@ class LoopOwners {
  private:
   std::span<const Position> positions_;
   const DiskStore& store_;
-  detail::HugePageVector<std::array<std::uint32_t, 2>> disks_;
-  detail::HugePageVector<std::uint8_t> count_;
+  Arrays own_;  // unused when the caller's arrays are given
+  const detail::HugePageVector<std::array<std::uint32_t, 2>>& disks_;
+  const detail::HugePageVector<std::uint8_t>& count_;
 };
 
 // Whether two positions lie on one lattice line (same edge axis, same other coordinates).

@@ -18,20 +18,26 @@
 namespace typemerge::core::merge {
 namespace {
 
-// The three steps on one piece's marching-cubes surface; returns its triangles.
-std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattice,
-                                    const IndexToPatient& geometry, const MergeOptions& options,
-                                    DiskStore& store, MergeStats& stats) {
+// The three steps on one piece's marching-cubes surface; its triangles into `out`.
+void merge_surface(const PieceSurface& piece, const Box& lattice, const IndexToPatient& geometry,
+                   const MergeOptions& options, PieceScratch& scratch, std::vector<Triangle>& out,
+                   MergeStats& stats) {
+  // Room in the scratch's arrays for the largest piece (marching cubes' outputs were reserved
+  // for it), so that a later, larger piece does not move them to fresh pages.
+  const std::size_t vertex_room = piece.mesh.positions.capacity();
+  const std::size_t triangle_room = piece.mesh.triangles.capacity();
   const std::span<const Position> positions = piece.mesh.positions;
   const std::array<double, 3> spacing =
       options.blocks_follow_spacing
           ? std::array<double, 3>{geometry.spacing(0), geometry.spacing(1), geometry.spacing(2)}
           : std::array<double, 3>{1.0, 1.0, 1.0};
-  LocalTable table(positions);
+  LocalTable& table = scratch.table;
+  table.reset(positions, vertex_room);
+  DiskStore& store = scratch.store;
   LoopTriangulator triangulator(geometry.axes);
-  store.reset(piece.mesh.triangles.size(), positions.size());
-  std::vector<Triangle> out;
-  detail::reserve_on_huge_pages(out, piece.mesh.triangles.size() / 2);
+  store.reset(triangle_room, vertex_room);
+  out.clear();
+  out.reserve(triangle_room / 2);
 
   const Tolerance tolerance = options.epsilon_mm > 0.0
                                   ? Tolerance::in_mm(options.epsilon_mm, geometry.axes)
@@ -39,15 +45,28 @@ std::vector<Triangle> merge_surface(const PieceSurface& piece, const Box& lattic
   DiskTest test(positions, piece.mesh.triangles, tolerance, table, triangulator);
   test_blocks(piece, lattice, block_dims(geometry, options), spacing, test, store, out, stats);
 
-  std::vector<std::uint8_t> state(positions.size(), kOpen);
-  const LoopOwners owners(positions, store);
+  std::vector<std::uint8_t>& state = scratch.state;
+  state.reserve(vertex_room);
+  state.assign(positions.size(), kOpen);
+  scratch.owners.disks.reserve(vertex_room);
+  scratch.owners.count.reserve(vertex_room);
+  const LoopOwners owners(positions, store, scratch.owners);
   thin_shared_faces(positions, store, owners, tolerance, state, stats);
 
-  triangulate_disks(piece, geometry.axes, owners, store, state, table, triangulator, out, stats);
-  return out;
+  scratch.made.reserve(triangle_room / 2);
+  triangulate_disks(piece, geometry.axes, owners, store, state, table, triangulator,
+                    scratch.made, out, stats);
+  if (!scratch.keep) scratch.release_merge_arrays();
 }
 
 }  // namespace
+
+void PieceScratch::release_merge_arrays() {
+  table = LocalTable();
+  owners = LoopOwners::Arrays();
+  state = {};
+  made = {};
+}
 
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last,
@@ -56,6 +75,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   detail::SurfacePiece piece =
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
                              expected_vertices, &scratch.surface);
+  if (!scratch.keep) piece.slice_buffers.reset();
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
@@ -69,18 +89,32 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   lattice.hi = {static_cast<std::int32_t>(size.nx - 1 + pad),
                 static_cast<std::int32_t>(size.ny - 1 + pad),
                 static_cast<std::int32_t>(last) - pad};
-  std::vector<Triangle> triangles =
-      merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options,
-                    scratch.store, out.stats);
+  std::vector<Triangle>& triangles = scratch.triangles;
+  merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options, scratch,
+                triangles, out.stats);
 
-  // Compaction: the vertices still used, in their order (so the seam's stay first, in order).
-  std::vector<VertexId> new_id(piece.mesh.positions.size(), kNone);
+  // Compaction: the vertices still used, in their order (so the seam's stay first, in order),
+  // into the scratch's output arrays.
+  out.mesh = std::move(scratch.output);
+  out.mesh.positions.clear();
+  out.mesh.normals.clear();
+  out.mesh.triangles.clear();
+  std::vector<VertexId>& new_id = scratch.new_id;
+  new_id.reserve(piece.mesh.positions.capacity());
+  new_id.assign(piece.mesh.positions.size(), kNone);
   for (const Triangle& t : triangles) {
     for (VertexId v : t) new_id[v] = 0;
   }
   const auto kept = static_cast<std::size_t>(std::count(new_id.begin(), new_id.end(), 0));
-  detail::reserve_on_huge_pages(out.mesh.positions, kept);
-  if (normals) detail::reserve_on_huge_pages(out.mesh.normals, kept);
+  // Arrays that are too small get a quarter more room than needed, so that they serve a
+  // somewhat larger piece after this one; huge pages only where this piece writes (a 2 MiB
+  // page in the room beyond would be mapped whole for its first bytes).
+  const auto make_room = [](auto& v, std::size_t n) {
+    if (v.capacity() < n) v.reserve(n + n / 4);
+    detail::advise_huge_pages(v.data(), n * sizeof(v[0]));
+  };
+  make_room(out.mesh.positions, kept);
+  if (normals) make_room(out.mesh.normals, kept);
   VertexId next = 0;
   for (VertexId v = 0; v < new_id.size(); ++v) {
     if (new_id[v] == 0) {
@@ -93,10 +127,10 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
       ++next;
     }
   }
-  for (Triangle& t : triangles) {
-    for (VertexId& v : t) v = new_id[v];
+  make_room(out.mesh.triangles, triangles.size());
+  for (const Triangle& t : triangles) {
+    out.mesh.triangles.push_back({new_id[t[0]], new_id[t[1]], new_id[t[2]]});
   }
-  out.mesh.triangles = std::move(triangles);
   // Seam vertices lie on block faces, so they are loop vertices and stay.
   for (std::size_t v = 0; v < out.shared; ++v) {
     if (new_id[v] != v) throw std::logic_error("type merging dropped a seam vertex");

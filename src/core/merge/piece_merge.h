@@ -10,6 +10,8 @@
 #include "core/marching_cubes.h"
 #include "core/merge/disk_store.h"
 #include "core/merge/geometry.h"
+#include "core/merge/local_table.h"
+#include "core/merge/loop_thinning.h"
 #include "core/mesh.h"
 #include "core/type_merging.h"
 #include "core/volume.h"
@@ -25,13 +27,33 @@ struct MergedPiece {
   AmbiguityStats ambiguity;
 };
 
-// What a thread reuses from piece to piece: the piece's marching-cubes surface and step 1's
-// disk store (about 55 bytes a marching-cubes triangle). Emptied by each piece, their arrays
-// keep their capacity, so later pieces write into pages already mapped instead of faulting in
-// fresh ones (docs/benchmarks.md: most of a conversion's page faults were these).
+// What a thread reuses from piece to piece: the piece's marching-cubes surface (with the
+// extractor's slice arrays), step 1's disk store and block table, step 2's loop owners and
+// vertex states, the merged triangles and the compaction's ids (about 75 bytes a
+// marching-cubes triangle). Emptied by each piece, their arrays keep their capacity, so later
+// pieces write into pages already mapped instead of faulting in fresh ones
+// (docs/benchmarks.md: a page fault costs microseconds on virtual machines, and most of a
+// conversion's were these).
 struct PieceScratch {
   detail::SurfacePiece surface;
   DiskStore store;
+  LocalTable table;
+  LoopOwners::Arrays owners;
+  std::vector<std::uint8_t> state;
+  std::vector<Triangle> made;       // step 3's new triangles
+  std::vector<Triangle> triangles;  // the merged piece's, before compaction
+  std::vector<VertexId> new_id;
+  // Arrays for the merged piece's mesh, e.g. a consumed piece's (type_merging.cpp hands them
+  // back): merge_piece writes its mesh into them.
+  TriangleMesh output;
+  // False for the scratch's last piece: the extractor's slice arrays and the merge's
+  // per-vertex arrays (table, owners, state, made) are then freed as soon as the piece is done
+  // with them, so the last pieces (made while the output is at its largest) hold no more than
+  // they need.
+  bool keep = true;
+
+  // Frees the arrays `keep` is about.
+  void release_merge_arrays();
 };
 
 // Cube layers [first, last) of the volume, extracted and merged: step 1 (blocks.h, with
