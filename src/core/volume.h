@@ -48,21 +48,10 @@ struct VolumeSize {
 // where the decoder threads write every sample anyway and fault their own pages in parallel.
 // Large storage is on huge pages (huge_pages.h).
 template <typename T>
-struct DefaultInitAllocator : std::allocator<T> {
-  using value_type = T;
-  template <typename U>
-  struct rebind {
-    using other = DefaultInitAllocator<U>;
-  };
+struct DefaultInitAllocator : detail::HugePageAllocator<T> {
   DefaultInitAllocator() = default;
   template <typename U>
   DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
-  T* allocate(std::size_t n) {
-    return static_cast<T*>(detail::allocate_on_huge_pages(n * sizeof(T)));
-  }
-  void deallocate(T* p, std::size_t n) noexcept {
-    detail::deallocate_on_huge_pages(p, n * sizeof(T));
-  }
   template <typename U>
   void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
     ::new (static_cast<void*>(p)) U;
