@@ -251,10 +251,10 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         }
         if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
         scratch->output = std::move(output);
-        scratch->keep = i + threads < count;
+        scratch->keep = i + threads < count;  // else this thread's last piece
         merge::MergedPiece piece = merge::merge_piece(volume, iso, extract, options, bounds[i],
                                                       bounds[i + 1], *scratch, largest);
-        if (i + threads < count) {  // else freed now: the last pieces need no more
+        if (scratch->keep) {  // else freed now: the last pieces need no more
           const std::lock_guard lock(scratch_mutex);
           spare.push_back(std::move(scratch));
         }

@@ -18,10 +18,9 @@
 namespace typemerge::core::merge {
 namespace {
 
-// The three steps on one piece's marching-cubes surface; its triangles into `out`.
+// The three steps on one piece's marching-cubes surface; its triangles into scratch.triangles.
 void merge_surface(const PieceSurface& piece, const Box& lattice, const IndexToPatient& geometry,
-                   const MergeOptions& options, PieceScratch& scratch, std::vector<Triangle>& out,
-                   MergeStats& stats) {
+                   const MergeOptions& options, PieceScratch& scratch, MergeStats& stats) {
   // Room in the scratch's arrays for the largest piece (marching cubes' outputs were reserved
   // for it), so that a later, larger piece does not move them to fresh pages.
   const std::size_t vertex_room = piece.mesh.positions.capacity();
@@ -34,6 +33,7 @@ void merge_surface(const PieceSurface& piece, const Box& lattice, const IndexToP
   LocalTable& table = scratch.table;
   table.reset(positions, vertex_room);
   DiskStore& store = scratch.store;
+  std::vector<Triangle>& out = scratch.triangles;
   LoopTriangulator triangulator(geometry.axes);
   store.reset(triangle_room, vertex_room);
   out.clear();
@@ -89,9 +89,9 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   lattice.hi = {static_cast<std::int32_t>(size.nx - 1 + pad),
                 static_cast<std::int32_t>(size.ny - 1 + pad),
                 static_cast<std::int32_t>(last) - pad};
-  std::vector<Triangle>& triangles = scratch.triangles;
   merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options, scratch,
-                triangles, out.stats);
+                out.stats);
+  const std::vector<Triangle>& triangles = scratch.triangles;
 
   // Compaction: the vertices still used, in their order (so the seam's stay first, in order),
   // into the scratch's output arrays.
