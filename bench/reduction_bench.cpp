@@ -16,9 +16,10 @@
 //
 // Prints, per iso × bound × block size: one-thread extraction time, triangles and their share
 // of marching cubes', the two-sided Hausdorff and mean distances to marching cubes' surface in
-// mm (sampled at every vertex and over both surfaces, ≥ 1 point per mm²), crossing triangle
-// pairs (exact), whether the surface is closed and manifold with marching cubes' Euler
-// characteristic and components, and caps (> 170°) and needles (< 1°) beside marching cubes'.
+// mm (sampled at every vertex and centroid and at 1 point per mm² of both surfaces:
+// core::area_samples, as --report measures), crossing triangle pairs (exact), whether the
+// surface is closed and manifold with marching cubes' Euler characteristic and components, and
+// caps (> 170°) and needles (< 1°) beside marching cubes'.
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -65,7 +66,7 @@ Quality measure(const core::TriangleMesh& mesh, const core::TriangleMesh& mc,
                 const core::MeshCheck& mc_check, unsigned threads) {
   Quality q;
   q.triangles = mesh.triangles.size();
-  const auto d = core::surface_distance(mc, mesh, 0.7, threads);
+  const auto d = core::area_sampled_distance(mc, mesh, 1.0, threads);
   q.hausdorff = d.hausdorff();
   q.mean = d.mean();
   q.crossings = core::find_self_intersections(mesh, 1000).pairs.size();

@@ -22,9 +22,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Sample spacing of the reported distances: a barycentric lattice this fine puts more than one
-// point on every mm² of each surface.
-constexpr double kDistanceSpacingMm = 0.7;
+// Density of the reported distances' samples (core::area_samples: besides every vertex and
+// triangle centroid), as issue 31 states sampled distances.
+constexpr double kDistanceSamplesPerMm2 = 1.0;
 
 std::string number(double value) {
   char text[32];
@@ -213,8 +213,8 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       if (options.algorithm == "tm") {
         marching_cubes = core::extract_isosurface(source, iso, extract);
         core::to_patient(marching_cubes, volume.geometry());
-        const auto d = core::surface_distance(marching_cubes, mesh, kDistanceSpacingMm,
-                                              options.threads);
+        const auto d = core::area_sampled_distance(marching_cubes, mesh, kDistanceSamplesPerMm2,
+                                                   options.threads);
         result.distance = DistanceSummary{d.hausdorff(), d.mean(), std::nullopt, std::nullopt};
       } else {
         result.distance = DistanceSummary{};  // it is marching cubes' surface
@@ -227,7 +227,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     finish_surface(result, spec, options);
     if (result.distance && !marching_cubes.empty() && result.steps.size() > 1) {
       // The finished surface's samples against marching cubes' surface.
-      const core::TriangleMesh samples = core::surface_samples(result.mesh, kDistanceSpacingMm);
+      const core::TriangleMesh samples = core::area_samples(result.mesh, kDistanceSamplesPerMm2);
       const auto d = core::vertex_to_mesh_distance(samples, marching_cubes, options.threads);
       result.distance->finished_max_mm = d.max;
       result.distance->finished_mean_mm = d.mean;

@@ -192,6 +192,81 @@ TriangleMesh surface_samples(const TriangleMesh& mesh, double spacing) {
   return points;
 }
 
+namespace {
+
+// SplitMix64 (Steele, Lea and Flood 2014): a well-mixed 64-bit value from any state, so that
+// consecutive triangle indices start unrelated streams.
+std::uint64_t split_mix(std::uint64_t& state) {
+  std::uint64_t z = (state += 0x9e3779b97f4a7c15ULL);
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Uniform in [0, 1).
+double unit(std::uint64_t& state) { return static_cast<double>(split_mix(state) >> 11) * 0x1p-53; }
+
+}  // namespace
+
+TriangleMesh area_samples(const TriangleMesh& mesh, double per_unit_area, std::uint64_t seed) {
+  assert(per_unit_area >= 0.0);
+  std::vector<double> areas(mesh.triangles.size());
+  double total = 0.0;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const auto& tri = mesh.triangles[t];
+    const P3 a = to_p3(mesh.positions[tri[0]]);
+    const P3 n = cross3(sub(to_p3(mesh.positions[tri[1]]), a), sub(to_p3(mesh.positions[tri[2]]), a));
+    areas[t] = 0.5 * std::sqrt(dot3(n, n));
+    total += areas[t];
+  }
+  TriangleMesh points;
+  const auto spread = static_cast<std::size_t>(std::ceil(total * per_unit_area));
+  points.positions.reserve(mesh.positions.size() + mesh.triangles.size() + spread);
+  points.positions = mesh.positions;
+  for (const auto& tri : mesh.triangles) {
+    std::array<float, 3> c;
+    for (int k = 0; k < 3; ++k) {
+      c[k] = static_cast<float>((double{mesh.positions[tri[0]][k]} + mesh.positions[tri[1]][k] +
+                                 mesh.positions[tri[2]][k]) /
+                                3.0);
+    }
+    points.positions.push_back(c);
+  }
+  double running = 0.0;
+  std::size_t given = 0;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    running += areas[t] * per_unit_area;
+    const std::size_t due =
+        t + 1 == mesh.triangles.size() ? spread
+                                       : std::min(spread, static_cast<std::size_t>(std::ceil(running)));
+    if (due <= given) continue;
+    const auto& tri = mesh.triangles[t];
+    const P3 a = to_p3(mesh.positions[tri[0]]);
+    const P3 b = to_p3(mesh.positions[tri[1]]);
+    const P3 c = to_p3(mesh.positions[tri[2]]);
+    std::uint64_t state = seed ^ (0xd1b54a32d192ed03ULL * (t + 1));
+    for (; given < due; ++given) {
+      // Uniform over the triangle: √r1 along the way from a to the edge bc, r2 along bc.
+      const double r1 = std::sqrt(unit(state));
+      const double r2 = unit(state);
+      const double wa = 1.0 - r1;
+      const double wb = r1 * (1.0 - r2);
+      const double wc = r1 * r2;
+      std::array<float, 3> q;
+      for (int k = 0; k < 3; ++k) q[k] = static_cast<float>(wa * a[k] + wb * b[k] + wc * c[k]);
+      points.positions.push_back(q);
+    }
+  }
+  return points;
+}
+
+SymmetricMeshDistance area_sampled_distance(const TriangleMesh& a, const TriangleMesh& b,
+                                            double per_unit_area, unsigned threads,
+                                            std::uint64_t seed) {
+  return {vertex_to_mesh_distance(area_samples(a, per_unit_area, seed), b, threads),
+          vertex_to_mesh_distance(area_samples(b, per_unit_area, seed), a, threads)};
+}
+
 SymmetricMeshDistance surface_distance(const TriangleMesh& a, const TriangleMesh& b,
                                        double spacing, unsigned threads) {
   return {vertex_to_mesh_distance(surface_samples(a, spacing), b, threads),

@@ -73,6 +73,68 @@ TEST(MeshDistance, SurfaceSamplesSeeInsideTriangles) {
   EXPECT_TRUE(points.triangles.empty());
 }
 
+// Area samples: every vertex, then every centroid, then ⌈area × density⌉ points spread by
+// area (a triangle of three times the area gets three times the points), all on the surface,
+// the same for the same seed.
+TEST(MeshDistance, AreaSamplesSpreadByArea) {
+  TriangleMesh mesh;  // two separate triangles of areas 1 and 3
+  mesh.positions = {{0, 0, 0}, {2, 0, 0}, {0, 1, 0}, {5, 0, 1}, {8, 0, 1}, {5, 2, 1}};
+  mesh.triangles = {{0, 1, 2}, {3, 4, 5}};
+  const TriangleMesh samples = area_samples(mesh, 100.0, 7);
+  ASSERT_EQ(samples.positions.size(), 6u + 2u + 400u);
+  EXPECT_TRUE(samples.triangles.empty());
+  for (std::size_t v = 0; v < 6; ++v) EXPECT_EQ(samples.positions[v], mesh.positions[v]);
+  EXPECT_NEAR(samples.positions[6][0], 2.0f / 3.0f, 1e-6);
+  EXPECT_NEAR(samples.positions[7][1], 2.0f / 3.0f, 1e-6);
+  std::size_t on_first = 0;
+  for (std::size_t i = 8; i < samples.positions.size(); ++i) {
+    const auto& p = samples.positions[i];
+    if (p[2] == 0.0f) {
+      ++on_first;
+      EXPECT_GE(p[0], 0.0f);
+      EXPECT_GE(p[1], 0.0f);
+      EXPECT_LE(p[0] / 2.0f + p[1], 1.0f + 1e-6f);  // inside the first triangle
+    } else {
+      EXPECT_EQ(p[2], 1.0f);
+    }
+  }
+  EXPECT_EQ(on_first, 100u);
+  EXPECT_LE(vertex_to_mesh_distance(samples, mesh, 1).max, 1e-6);
+  // Uniform inside the triangle: three quarters of its area lies at x < 1, so about 75 of its
+  // 100 points do (binomial: 60 to 90 is beyond three standard deviations).
+  std::size_t left = 0;
+  for (std::size_t i = 8; i < samples.positions.size(); ++i) {
+    if (samples.positions[i][2] == 0.0f && samples.positions[i][0] < 1.0f) ++left;
+  }
+  EXPECT_GT(left, 60u);
+  EXPECT_LT(left, 90u);
+  // Seeded: the same points again; another seed moves the spread points only.
+  EXPECT_EQ(area_samples(mesh, 100.0, 7).positions, samples.positions);
+  const TriangleMesh other = area_samples(mesh, 100.0, 8);
+  ASSERT_EQ(other.positions.size(), samples.positions.size());
+  EXPECT_TRUE(std::equal(samples.positions.begin(), samples.positions.begin() + 8,
+                         other.positions.begin()));
+  EXPECT_NE(other.positions, samples.positions);
+  // No density: vertices and centroids only.
+  EXPECT_EQ(area_samples(mesh, 0.0).positions.size(), 8u);
+}
+
+// The bent quad of SurfaceSamplesSeeInsideTriangles: area samples find the surfaces' distance
+// that vertex samples miss, to within their spread.
+TEST(MeshDistance, AreaSampledDistanceSeesInsideTriangles) {
+  TriangleMesh a;
+  a.positions = {{0, 0, 0}, {2, 0, 0}, {2, 2, 1}, {0, 2, 0}};
+  a.triangles = {{0, 1, 2}, {0, 2, 3}};
+  TriangleMesh b = a;
+  b.triangles = {{0, 1, 3}, {1, 2, 3}};
+  const auto sampled = area_sampled_distance(a, b, 400.0, 1);
+  EXPECT_LE(sampled.hausdorff(), 1.0 / std::sqrt(5.0) + 1e-6);
+  EXPECT_GT(sampled.hausdorff(), 1.0 / std::sqrt(5.0) - 0.05);
+  // Vertices, centroids and ⌈400 × area⌉: A's two triangles have √5 each, B's 2 and √6.
+  EXPECT_EQ(sampled.a_to_b.points, 4u + 2u + 1789u);
+  EXPECT_EQ(sampled.b_to_a.points, 4u + 2u + 1780u);
+}
+
 TEST(MeshDistance, PointTriangleAndSegmentDistances) {
   const std::array<double, 3> a{0, 0, 0};
   const std::array<double, 3> b{2, 0, 0};
