@@ -27,9 +27,9 @@
 // VTK would read a CT) and prints, per iso, mc and tm on one thread against
 // vtkFlyingEdges3D on one thread, and tm's two-thread speed-up, all from this one run
 // (the speed-up from one- and two-thread runs in alternation, the median of their pairs'
-// ratios, whenever --threads lists 2, beside the host's own ratio on perfectly parallel work
-// in the same pairs (host_scaling.h); needs python3-vtk9 and python3-numpy; --vtk-python to
-// choose the interpreter).
+// ratios, whenever --threads lists 2, beside the host's own ratios on perfectly parallel work
+// in a core's cache and streaming memory, in the same pairs: host_scaling.h); needs
+// python3-vtk9 and python3-numpy; --vtk-python to choose the interpreter).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -192,7 +192,8 @@ int main(int argc, char** argv) {
   // Per iso: one-thread mc and tm (ms), for the ratios to VTK.
   std::map<std::string, std::array<double, 2>> figures;
   std::map<std::string, double> scaling;  // tm: median of one thread / two threads, in pairs
-  std::map<std::string, double> host_scaling;  // the same for the host's parallel work
+  // The same for the host's perfectly parallel work: in a core's cache, streaming memory.
+  std::map<std::string, std::array<double, 2>> host_scaling;
   const auto& size = volume.size();
   const double cells = double(size.nx - 1) * double(size.ny - 1) * double(size.nz - 1);
   std::printf("volume: %s, %lldx%lldx%lld (%.1f M cells, %.0f MiB of %s samples)\n",
@@ -257,11 +258,13 @@ int main(int argc, char** argv) {
           // Two threads against one, timed in alternation and taken pair by pair: the
           // medians above are minutes apart, and a host whose speed drifts in between moves
           // their ratio more than threads do.
-          // The host's own two-thread ratio on perfectly parallel work is taken in each pair
-          // as well (bench/host_scaling.h): tm's ratio is read against it.
+          // The host's own two-thread ratios on perfectly parallel work, in a core's cache and
+          // streaming memory, are taken in each pair as well (bench/host_scaling.h): tm's
+          // ratio is read against them.
+          static bench::HostProbe probe;
           std::vector<double> ratios;
-          std::vector<double> host_ratios;
-          std::vector<double> shares;
+          std::vector<double> cached;
+          std::vector<double> streaming;
           for (int r = 0; r < repeat; ++r) {
             double pair_ms[2];
             for (unsigned t : {1u, 2u}) {
@@ -277,11 +280,11 @@ int main(int argc, char** argv) {
                                    .count();
             }
             ratios.push_back(pair_ms[0] / pair_ms[1]);
-            host_ratios.push_back(bench::two_host_units_ms(1) / bench::two_host_units_ms(2));
-            shares.push_back(ratios.back() / host_ratios.back());
+            cached.push_back(probe.cached_ms(1) / probe.cached_ms(2));
+            streaming.push_back(probe.streaming_ms(1) / probe.streaming_ms(2));
           }
           scaling[iso_text] = median_ms(ratios);
-          host_scaling[iso_text] = median_ms(host_ratios);
+          host_scaling[iso_text] = {median_ms(cached), median_ms(streaming)};
           const auto listed = [](const std::vector<double>& values) {
             std::string text;
             for (double value : values) {
@@ -293,11 +296,10 @@ int main(int argc, char** argv) {
           };
           std::printf("    tm one thread / two threads, %d alternating pairs: median %.2f (%s)\n",
                       repeat, scaling[iso_text], listed(ratios).c_str());
-          std::printf("    host, the same pairs, two units of parallel work (bench/host_scaling.h): "
-                      "median %.2f (%s)\n",
-                      host_scaling[iso_text], listed(host_ratios).c_str());
-          std::printf("    tm's ratio / the host's, pair by pair: median %.2f (%s)\n",
-                      median_ms(shares), listed(shares).c_str());
+          std::printf("    the host in the same pairs, perfectly parallel work (host_scaling.h): "
+                      "in cache %.2f (%s); streaming memory %.2f (%s)\n",
+                      host_scaling[iso_text][0], listed(cached).c_str(),
+                      host_scaling[iso_text][1], listed(streaming).c_str());
         }
         const core::MeshCheck check = core::check_mesh(mesh);
         std::printf("%-8s %-8s %3s %10.1f %10.1f %11zu %10zu %10.1f %9zu %9zu %9zu\n",
@@ -398,17 +400,18 @@ int main(int argc, char** argv) {
       }
     }
     if (pipe == nullptr || ::pclose(pipe) != 0) std::printf("    (vtk_extract.py failed)\n");
-    std::printf("%-8s %10s %10s %10s %10s %10s %12s %12s\n", "iso", "FE ms", "mc ms", "tm ms",
-                "mc/FE", "tm/FE", "tm 1thr/2thr", "host 1/2");
+    std::printf("%-8s %10s %10s %10s %10s %10s %12s %16s\n", "iso", "FE ms", "mc ms", "tm ms",
+                "mc/FE", "tm/FE", "tm 1thr/2thr", "host cache/mem");
     for (const auto& [iso_text, f] : figures) {
       const auto fe = flying_edges.find(std::stod(iso_text));
       if (fe == flying_edges.end()) continue;
       const auto pairs = scaling.find(iso_text);
       const auto host = host_scaling.find(iso_text);
-      std::printf("%-8s %10.1f %10.1f %10.1f %10.2f %10.2f %12.2f %12.2f\n", iso_text.c_str(),
-                  fe->second, f[0], f[1], f[0] / fe->second, f[1] / fe->second,
-                  pairs != scaling.end() ? pairs->second : 0.0,
-                  host != host_scaling.end() ? host->second : 0.0);
+      const std::array<double, 2> ceiling =
+          host != host_scaling.end() ? host->second : std::array<double, 2>{0.0, 0.0};
+      std::printf("%-8s %10.1f %10.1f %10.1f %10.2f %10.2f %12.2f %11.2f/%.2f\n",
+                  iso_text.c_str(), fe->second, f[0], f[1], f[0] / fe->second, f[1] / fe->second,
+                  pairs != scaling.end() ? pairs->second : 0.0, ceiling[0], ceiling[1]);
     }
   }
   return 0;
