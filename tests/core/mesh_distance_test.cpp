@@ -53,14 +53,20 @@ TEST(MeshDistance, ExactOnASquare) {
   EXPECT_DOUBLE_EQ(max_vertex_distance(square, square), 0.0);
 }
 
-// A bent quad cut along one diagonal or the other: the same four vertices, so vertex samples
-// see no difference; the surfaces differ by 0.5 in the middle, which surface samples find.
-TEST(MeshDistance, SurfaceSamplesSeeInsideTriangles) {
+// A bent quad cut along one diagonal (first) or the other (second): the same four vertices,
+// so vertex samples see no difference; the surfaces differ by 0.5 in the middle.
+std::pair<TriangleMesh, TriangleMesh> bent_quads() {
   TriangleMesh a;
   a.positions = {{0, 0, 0}, {2, 0, 0}, {2, 2, 1}, {0, 2, 0}};
   a.triangles = {{0, 1, 2}, {0, 2, 3}};
   TriangleMesh b = a;
   b.triangles = {{0, 1, 3}, {1, 2, 3}};
+  return {a, b};
+}
+
+// Surface samples find the bent quads' difference.
+TEST(MeshDistance, SurfaceSamplesSeeInsideTriangles) {
+  const auto [a, b] = bent_quads();
   EXPECT_EQ(mesh_distance(a, b).hausdorff(), 0.0);
   const auto sampled = surface_distance(a, b, 0.05);
   // The farthest points are the diagonals' midpoints: B's (1, 1, 0) lies 2 / sqrt(20) from A's
@@ -119,14 +125,9 @@ TEST(MeshDistance, AreaSamplesSpreadByArea) {
   EXPECT_EQ(area_samples(mesh, 0.0).positions.size(), 8u);
 }
 
-// The bent quad of SurfaceSamplesSeeInsideTriangles: area samples find the surfaces' distance
-// that vertex samples miss, to within their spread.
+// Area samples find the bent quads' distance too, to within their spread.
 TEST(MeshDistance, AreaSampledDistanceSeesInsideTriangles) {
-  TriangleMesh a;
-  a.positions = {{0, 0, 0}, {2, 0, 0}, {2, 2, 1}, {0, 2, 0}};
-  a.triangles = {{0, 1, 2}, {0, 2, 3}};
-  TriangleMesh b = a;
-  b.triangles = {{0, 1, 3}, {1, 2, 3}};
+  const auto [a, b] = bent_quads();
   const auto sampled = area_sampled_distance(a, b, 400.0, 1);
   EXPECT_LE(sampled.hausdorff(), 1.0 / std::sqrt(5.0) + 1e-6);
   EXPECT_GT(sampled.hausdorff(), 1.0 / std::sqrt(5.0) - 0.05);
