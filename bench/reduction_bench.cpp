@@ -241,7 +241,7 @@ int main(int argc, char** argv) {
       mesh::DecimationOptions decimation;
       decimation.target_triangles = n;
       decimation.max_error = std::numeric_limits<double>::infinity();
-      mesh::decimate_with_openmesh(openmesh, decimation);
+      mesh::decimate_mesh(openmesh, decimation);
       print("mc + OpenMesh quadric", mc_ms + ms_since(start),
             measure(openmesh, mc, mc_check, threads), mc.triangles.size());
 

@@ -11,7 +11,7 @@ packages=(
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev
   libpng-dev              # preview PNGs (not OpenCV imgcodecs: it drags GDAL and 138 libraries)
   libopenmesh-dev         # mesh finishing: components, smoothing, decimation
-  libmeshoptimizer-dev    # fast decimation (--decimator meshopt), checked, OpenMesh behind it
+  libmeshoptimizer-dev    # reduction_bench's meshoptimizer baseline (benchmarks only)
   libcgal-dev             # exact predicates: the self-intersection (crossing) test
   libcli11-dev            # command line
   nlohmann-json3-dev      # reports and `info --json`

@@ -1,8 +1,8 @@
 // Self-intersections of a triangle mesh: pairs of triangles that cross or overlap, decided with
 // exact predicates (CGAL's exact-predicates kernel: orientation tests on the float coordinates
 // as stored, no rounding). The one place the project decides "do these two triangles cross";
-// `typemerge stats --self-intersections`, `convert --check-intersections`, meshoptimizer's
-// checks (mesh/meshopt_decimation.h), the tests and the fuzzers all use it.
+// `typemerge stats --self-intersections`, `convert --check-intersections`, the benchmarks,
+// the tests and the fuzzers all use it.
 //
 // What counts (the semantics of CGAL's Polygon_mesh_processing::self_intersections, so a mesh
 // we call clean is clean for CGAL too; a test compares the two):

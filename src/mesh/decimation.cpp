@@ -3,7 +3,6 @@
 #include <cassert>
 #include <chrono>
 #include <string>
-#include <utility>
 
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModHausdorffT.hh>
@@ -11,36 +10,16 @@
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
 
 #include "mesh/detail/openmesh_conversion.h"
-#include "mesh/meshopt_decimation.h"
 
 namespace typemerge::mesh {
 
-const char* to_string(Decimator decimator) {
-  return decimator == Decimator::meshopt ? "meshopt" : "openmesh";
-}
-
 DecimationReport decimate_mesh(core::TriangleMesh& mesh, const DecimationOptions& options) {
-  if (options.decimator == Decimator::openmesh) return decimate_with_openmesh(mesh, options);
-  DecimationReport tried = decimate_with_meshopt(mesh, options);
-  if (tried.fallback.empty()) return tried;
-  // `mesh` is the input still: meshoptimizer's refused result was not written into it.
-  DecimationReport report = decimate_with_openmesh(mesh, options);
-  report.fallback = tried.fallback;
-  report.meshopt = std::move(tried.meshopt);
-  report.warnings.insert(report.warnings.begin(),
-                         "meshoptimizer's result refused (" + tried.fallback +
-                             "); OpenMesh's decimater used instead");
-  return report;
-}
-
-DecimationReport decimate_with_openmesh(core::TriangleMesh& mesh, const DecimationOptions& options) {
   assert(options.max_error > 0.0);
   assert(options.max_normal_deviation > 0.0 && options.max_normal_deviation <= 180.0);
   using detail::OpenMeshTriMesh;
 
   const auto start = std::chrono::steady_clock::now();
   DecimationReport report;
-  report.decimator = Decimator::openmesh;
   report.triangles_before = mesh.triangles.size();
   report.max_error = options.max_error;
 

@@ -2,16 +2,15 @@
 // surface). Not a test and never gates.
 //   mesh_bench [n = 300] [noise = 0.5] [decimation target fraction = 0.1] [max_error = 0.2]
 //
-// The two decimators side by side on a surface written by `typemerge convert` (e.g. abdomen
-// bone, --algorithm mc, about 900 k triangles):
+// OpenMesh's bounded decimation (mesh/decimation.h, the benchmarks' baseline) on a surface
+// written by `typemerge convert` (e.g. abdomen bone, --algorithm mc, about 900 k triangles):
 //   mesh_bench --stl FILE [--reduce-to N] [--max-error MM] [--spacing MM = 0.5]
-//              [--threads T = 0] [--decimator both|meshopt|openmesh]
-// --reduce-to alone decimates blindly to N triangles (max_error infinite: equal triangle
-// count); --max-error alone as far as that bound allows (equal error); both as convert does.
-// Per library: wall time (meshopt's simplify and checks apart), triangles, the symmetric
-// Hausdorff and mean distance to the input sampled over both surfaces (core::surface_distance
-// at --spacing: the same measure for both), closed manifold, χ, components, crossing pairs,
-// and for meshopt whether it fell back to OpenMesh and why.
+//              [--threads T = 0]
+// --reduce-to alone decimates blindly to N triangles (max_error infinite); --max-error alone as
+// far as that bound allows; both: to N within the bound. Prints wall time, triangles, the
+// symmetric Hausdorff and mean distance to the input sampled over both surfaces
+// (core::surface_distance at --spacing, on --threads), closed manifold, χ, components and
+// crossing pairs.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -40,14 +39,13 @@ double seconds_since(Clock::time_point start) {
 }
 
 // mesh_bench --stl FILE ...: see the top of this file.
-int compare_decimators(int argc, char** argv) {
+int decimate_stl(int argc, char** argv) {
   using namespace typemerge;
   std::string stl;
   std::size_t target = 0;
   double max_error = std::numeric_limits<double>::infinity();
   double spacing = 0.5;
   unsigned threads = 0;
-  std::string which = "both";
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string flag = argv[i];
     const char* value = argv[i + 1];
@@ -61,8 +59,6 @@ int compare_decimators(int argc, char** argv) {
       spacing = std::atof(value);
     } else if (flag == "--threads") {
       threads = static_cast<unsigned>(std::atoi(value));
-    } else if (flag == "--decimator") {
-      which = value;
     } else {
       std::fprintf(stderr, "unknown option %s\n", argv[i]);
       return 2;
@@ -79,34 +75,23 @@ int compare_decimators(int argc, char** argv) {
               stl.c_str(), input.triangles.size(), before.valid(),
               static_cast<long long>(before.check.euler_characteristic), before.check.components,
               target, max_error, spacing);
-  for (const mesh::Decimator decimator : {mesh::Decimator::meshopt, mesh::Decimator::openmesh}) {
-    if (which != "both" && which != mesh::to_string(decimator)) continue;
-    core::TriangleMesh mesh = input;
-    mesh::DecimationOptions options;
-    options.target_triangles = target;
-    options.max_error = max_error;
-    options.decimator = decimator;
-    options.threads = threads;
-    const auto start = Clock::now();
-    const mesh::DecimationReport report = mesh::decimate_mesh(mesh, options);
-    const double seconds = seconds_since(start);
-    const core::SymmetricMeshDistance distance =
-        core::surface_distance(input, mesh, spacing, threads);
-    const std::size_t crossings = core::find_self_intersections(mesh).pairs.size();
-    std::printf("%-8s %zu → %zu triangles in %.2f s (meshopt %.2f s in %d passes, checks %.2f s, "
-                "openmesh %.2f s); Hausdorff %.3f mm (input→result %.3f, result→input %.3f), "
-                "mean %.4f mm; closed manifold %d, χ %lld, %zu components, %zu crossing pairs; "
-                "result of %s%s%s\n",
-                mesh::to_string(decimator), report.triangles_before, report.triangles_after,
-                seconds, report.meshopt.simplify_ms / 1000, report.meshopt.passes, report.meshopt.check_ms / 1000,
-                report.openmesh_ms / 1000, distance.hausdorff(), distance.a_to_b.max,
-                distance.b_to_a.max, distance.mean(), report.validity.valid(),
-                static_cast<long long>(report.validity.check.euler_characteristic),
-                report.validity.check.components, crossings, mesh::to_string(report.decimator),
-                report.fallback.empty() ? "" : ", fell back: ", report.fallback.c_str());
-    for (const auto& note : report.meshopt.notes) std::printf("  %s\n", note.c_str());
-    std::fflush(stdout);
-  }
+  core::TriangleMesh mesh = input;
+  mesh::DecimationOptions options;
+  options.target_triangles = target;
+  options.max_error = max_error;
+  const auto start = Clock::now();
+  const mesh::DecimationReport report = mesh::decimate_mesh(mesh, options);
+  const double seconds = seconds_since(start);
+  const core::SymmetricMeshDistance distance =
+      core::surface_distance(input, mesh, spacing, threads);
+  const std::size_t crossings = core::find_self_intersections(mesh).pairs.size();
+  std::printf("openmesh %zu → %zu triangles in %.2f s; Hausdorff %.3f mm (input→result %.3f, "
+              "result→input %.3f), mean %.4f mm; closed manifold %d, χ %lld, %zu components, "
+              "%zu crossing pairs\n",
+              report.triangles_before, report.triangles_after, seconds, distance.hausdorff(),
+              distance.a_to_b.max, distance.b_to_a.max, distance.mean(), report.validity.valid(),
+              static_cast<long long>(report.validity.check.euler_characteristic),
+              report.validity.check.components, crossings);
   return 0;
 }
 
@@ -114,7 +99,7 @@ int compare_decimators(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace typemerge;
-  if (argc > 1 && std::strcmp(argv[1], "--stl") == 0) return compare_decimators(argc, argv);
+  if (argc > 1 && std::strcmp(argv[1], "--stl") == 0) return decimate_stl(argc, argv);
   const std::int64_t n = argc > 1 ? std::atoll(argv[1]) : 300;
   const double noise = argc > 2 ? std::atof(argv[2]) : 0.5;
   const double fraction = argc > 3 ? std::atof(argv[3]) : 0.1;
@@ -181,23 +166,18 @@ int main(int argc, char** argv) {
               static_cast<long long>(smoothing.validity.check.euler_characteristic),
               seconds_since(start));
 
-  for (const mesh::Decimator decimator : {mesh::Decimator::meshopt, mesh::Decimator::openmesh}) {
-    core::TriangleMesh reduced = mesh;
-    mesh::DecimationOptions options;
-    options.target_triangles =
-        static_cast<std::size_t>(fraction * static_cast<double>(mesh.triangles.size()));
-    options.max_error = max_error;
-    options.decimator = decimator;
-    start = Clock::now();
-    const mesh::DecimationReport decimation = mesh::decimate_mesh(reduced, options);
-    std::printf("decimate_mesh %s (target %zu, max_error %.3f): %zu → %zu triangles, reached %d, "
-                "valid %d, χ %lld, volume %.0f, %.2f s%s%s\n",
-                mesh::to_string(decimator), options.target_triangles, decimation.max_error,
-                decimation.triangles_before, decimation.triangles_after,
-                decimation.reached_target, decimation.validity.valid(),
-                static_cast<long long>(decimation.validity.check.euler_characteristic),
-                decimation.validity.check.volume, seconds_since(start),
-                decimation.fallback.empty() ? "" : ", fell back: ", decimation.fallback.c_str());
-  }
+  core::TriangleMesh reduced = mesh;
+  mesh::DecimationOptions options;
+  options.target_triangles =
+      static_cast<std::size_t>(fraction * static_cast<double>(mesh.triangles.size()));
+  options.max_error = max_error;
+  start = Clock::now();
+  const mesh::DecimationReport decimation = mesh::decimate_mesh(reduced, options);
+  std::printf("decimate_mesh (target %zu, max_error %.3f): %zu → %zu triangles, reached %d, "
+              "valid %d, χ %lld, volume %.0f, %.2f s\n",
+              options.target_triangles, decimation.max_error, decimation.triangles_before,
+              decimation.triangles_after, decimation.reached_target, decimation.validity.valid(),
+              static_cast<long long>(decimation.validity.check.euler_characteristic),
+              decimation.validity.check.volume, seconds_since(start));
   return 0;
 }
