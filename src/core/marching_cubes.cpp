@@ -241,12 +241,16 @@ std::size_t count_differences(const std::uint8_t* a, const std::uint8_t* b, std:
 template <typename T>
 class Scratch {
  public:
-  // Views n elements at `data`; returns the byte just past them, rounded up to a cache line.
+  // Bytes place() takes for n elements: theirs, rounded up to a cache line.
+  static constexpr std::size_t bytes(std::size_t n) {
+    constexpr std::size_t kLine = 64;
+    return (n * sizeof(T) + kLine - 1) / kLine * kLine;
+  }
+  // Views n elements at `data`; returns the byte just past them (bytes(n) on).
   std::byte* place(std::byte* data, std::size_t n) {
     data_ = reinterpret_cast<T*>(data);
     size_ = n;
-    constexpr std::size_t kLine = 64;
-    return data + (n * sizeof(T) + kLine - 1) / kLine * kLine;
+    return data + bytes(n);
   }
   T* data() { return data_; }
   const T* data() const { return data_; }
@@ -274,8 +278,10 @@ struct Slice {
   std::vector<std::uint8_t> left;
   std::vector<std::uint8_t> right;
 
-  // Bytes place() takes for slices of n samples (cache lines rounded up), without `values`.
-  static std::size_t bytes(std::size_t n) { return 9 * n + 3 * 64; }
+  // Bytes place() takes for slices of n samples, without `values`.
+  static std::size_t bytes(std::size_t n) {
+    return 2 * Scratch<VertexId>::bytes(n) + Scratch<std::uint8_t>::bytes(n);
+  }
 
   // Views its arrays but `values` from `block` on; returns the byte just past them.
   std::byte* place(std::byte* block, std::size_t n, std::size_t rows) {
@@ -350,8 +356,9 @@ class Extractor {
     // The float samples (a float volume's only: an int16 volume's are read where they are
     // stored, and padding slices store none) last, after the ids and flags every volume writes.
     const bool floats = !volume_.holds_int16();
-    const std::size_t value_bytes = floats ? 2 * (4 * n + 64) : 0;
-    std::byte* block = buffers_->reserve(4 * n + 64 + 2 * Slice::bytes(n) + value_bytes);
+    const std::size_t value_bytes = floats ? 2 * Scratch<float>::bytes(n) : 0;
+    std::byte* block =
+        buffers_->reserve(Scratch<VertexId>::bytes(n) + 2 * Slice::bytes(n) + value_bytes);
     Slice lower;
     Slice upper;
     block = z_vertex_.place(block, n);

@@ -8,9 +8,6 @@
 
 namespace typemerge::core::merge {
 
-LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& store)
-    : LoopOwners(positions, store, own_) {}
-
 LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& store,
                        Arrays& arrays)
     : positions_(positions), store_(store), disks_(arrays.disks), count_(arrays.count) {

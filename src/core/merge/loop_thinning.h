@@ -39,8 +39,7 @@ class LoopOwners {
     detail::HugePageVector<std::uint8_t> count;
   };
 
-  LoopOwners(std::span<const Position> positions, const DiskStore& store);
-  // The same, written into `arrays` (emptied first), which must outlive it.
+  // Written into `arrays` (emptied first), which must outlive it.
   LoopOwners(std::span<const Position> positions, const DiskStore& store, Arrays& arrays);
   LoopOwners(const LoopOwners&) = delete;
   LoopOwners& operator=(const LoopOwners&) = delete;
@@ -52,7 +51,6 @@ class LoopOwners {
  private:
   std::span<const Position> positions_;
   const DiskStore& store_;
-  Arrays own_;  // unused when the caller's arrays are given
   const detail::HugePageVector<std::array<std::uint32_t, 2>>& disks_;
   const detail::HugePageVector<std::uint8_t>& count_;
 };

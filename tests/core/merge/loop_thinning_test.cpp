@@ -116,7 +116,8 @@ TEST(LoopThinning, SharedFaceBetweenTwoDisksIsThinnedWithinEpsilon) {
   right.loop_size = 9;
   for (VertexId v : {6, 5, 4, 3, 2, 1, 0, 10, 9}) store.loops.push_back(static_cast<VertexId>(v));
   store.disks = {left, right};
-  const LoopOwners owners(positions, store);
+  LoopOwners::Arrays arrays;
+  const LoopOwners owners(positions, store, arrays);
   EXPECT_EQ(owners.partner(3, 0), 1u);
   EXPECT_EQ(owners.partner(3, 1), 0u);
   EXPECT_EQ(owners.partner(7, 0), kNone);  // on the left disk's loop only
