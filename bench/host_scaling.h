@@ -17,7 +17,8 @@ namespace typemerge::bench {
 class HostProbe {
  public:
   // Two private arrays of 64 MiB (beyond the caches), mapped here, outside any timing.
-  HostProbe() : arrays_{std::vector<std::uint32_t>(kWords, 1u), std::vector<std::uint32_t>(kWords, 2u)} {}
+  HostProbe()
+      : arrays_{std::vector<std::uint32_t>(kWords, 1u), std::vector<std::uint32_t>(kWords, 2u)} {}
 
   // Wall milliseconds for two units of integer arithmetic over a private 256 KiB buffer (in a
   // core's own cache: the units share nothing but the host), about 100 ms each on that host:

@@ -215,7 +215,8 @@ TriangleMesh area_samples(const TriangleMesh& mesh, double per_unit_area, std::u
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     const auto& tri = mesh.triangles[t];
     const P3 a = to_p3(mesh.positions[tri[0]]);
-    const P3 n = cross3(sub(to_p3(mesh.positions[tri[1]]), a), sub(to_p3(mesh.positions[tri[2]]), a));
+    const P3 n =
+        cross3(sub(to_p3(mesh.positions[tri[1]]), a), sub(to_p3(mesh.positions[tri[2]]), a));
     areas[t] = 0.5 * std::sqrt(dot3(n, n));
     total += areas[t];
   }
@@ -236,9 +237,8 @@ TriangleMesh area_samples(const TriangleMesh& mesh, double per_unit_area, std::u
   std::size_t given = 0;
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
     running += areas[t] * per_unit_area;
-    const std::size_t due =
-        t + 1 == mesh.triangles.size() ? spread
-                                       : std::min(spread, static_cast<std::size_t>(std::ceil(running)));
+    std::size_t due = std::min(spread, static_cast<std::size_t>(std::ceil(running)));
+    if (t + 1 == mesh.triangles.size()) due = spread;  // what the running sum's rounding left
     if (due <= given) continue;
     const auto& tri = mesh.triangles[t];
     const P3 a = to_p3(mesh.positions[tri[0]]);
