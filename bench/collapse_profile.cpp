@@ -4,10 +4,12 @@
 // target, on one thread, and prints its counters.
 //
 //   collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300] [--targets 0.25,0.1]
-//                    [--bound-steps 2.5] [--repeat 1]
+//                    [--bound-steps 2.5] [--local-share 0] [--repeat 1]
 //
 // --targets: shares of marching cubes' triangles; --bound-steps: the bound in finest voxel
-// steps (2.5 = half of kReductionCapSteps, where --reduce-to collapses first). Run under
+// steps (2.5 = half of kReductionCapSteps, where --reduce-to collapses first); --local-share:
+// CollapseOptions::local_rms as a share of the bound (0: none; --max-error uses
+// kLocalErrorShare), with targets of 0 to collapse as far as that allows. Run under
 // `perf record -g` or `valgrind --tool=callgrind` to see where the collapse time goes.
 #include <algorithm>
 #include <chrono>
@@ -39,7 +41,8 @@ double cpu_ms() {
 int usage() {
   std::fprintf(stderr,
                "usage: collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300]\n"
-               "         [--targets 0.25,0.1] [--bound-steps 2.5] [--repeat 1]\n");
+               "         [--targets 0.25,0.1] [--bound-steps 2.5] [--local-share 0]\n"
+               "         [--repeat 1]\n");
   return 2;
 }
 
@@ -49,6 +52,7 @@ int main(int argc, char** argv) {
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
   std::string series_dir, synthetic, iso_list = "300", targets = "0.25,0.1";
   double bound_steps = 0.5 * core::kReductionCapSteps;
+  double local_share = 0.0;
   int repeat = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
@@ -58,6 +62,7 @@ int main(int argc, char** argv) {
     else if (key == "--iso") iso_list = value;
     else if (key == "--targets") targets = value;
     else if (key == "--bound-steps") bound_steps = std::stod(value);
+    else if (key == "--local-share") local_share = std::stod(value);
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else return usage();
   }
@@ -93,14 +98,16 @@ int main(int argc, char** argv) {
         core::TriangleMesh work = merged;
         const auto start = Clock::now();
         const double cpu_start = cpu_ms();
-        const core::CollapseStats s = core::collapse_within_bound(work, reference, {bound, n});
+        const core::CollapseStats s = core::collapse_within_bound(work, reference,
+                                                                 {bound, n, local_share * bound});
         const double cpu = cpu_ms() - cpu_start;
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
         std::printf("  target %zu (%s): %.1f ms (CPU %.1f ms), %zu triangles; %zu collapses; "
-                    "refused %zu topology, %zu shape, %zu distance, %zu crossing; %zu held\n",
+                    "refused %zu topology, %zu shape, %zu distance, %zu crossing; %zu held; "
+                    "%zu passed over\n",
                     n, share.c_str(), ms, cpu, work.triangles.size(), s.collapses, s.refused_topology,
                     s.refused_shape, s.refused_distance, s.refused_crossing,
-                    s.held_reference_triangles);
+                    s.held_reference_triangles, s.passed_over_local_error);
       }
     }
   }

@@ -11,8 +11,10 @@
 // quadric decimater and meshoptimizer's simplifier on marching cubes' surface, and with --vtk
 // (bench/vtk_reduce.py, python3-vtk9) flying edges + vtkQuadricDecimation and + vtkDecimatePro
 // (topology preserved: the count it reaches); --baselines 0 leaves the two decimators out;
-// --exhaust 1 adds, per bound, the merge collapsed as far as the bound allows. Each is measured against its own unreduced
-// surface (tm and the decimators against marching cubes', VTK's against flying edges').
+// Per bound, after the merge alone: what --max-error gives (extract_type_merged_within, the
+// merge and its locally limited collapses); --exhaust 1 adds the merge collapsed as far as
+// the bound allows. Each is measured against its own unreduced surface (tm and the
+// decimators against marching cubes', VTK's against flying edges').
 //
 // Prints, per iso × bound × block size: one-thread extraction time, triangles and their share
 // of marching cubes', the two-sided Hausdorff and mean distances to marching cubes' surface in
@@ -197,6 +199,18 @@ int main(int argc, char** argv) {
         core::to_patient(tm, geometry);
         const std::string what = "tm " + epsilon_text + " mm, B " + block_text;
         print(what.c_str(), ms, measure(tm, mc, mc_check, threads), mc.triangles.size());
+        {
+          // What --max-error gives: the merge, then collapses within the bound while each stays
+          // locally within kLocalErrorShare of it.
+          start = Clock::now();
+          core::ReductionResult within = core::extract_type_merged_within(
+              volume, iso, extract, options, options.epsilon_mm);
+          const double within_ms = ms_since(start);
+          core::to_patient(within.mesh, geometry);
+          const std::string local = what + " --max-error";
+          print(local.c_str(), within_ms, measure(within.mesh, mc, mc_check, threads),
+                mc.triangles.size());
+        }
         if (!exhaust) continue;
         // The merge, then bounded collapses as far as the bound allows.
         start = Clock::now();

@@ -11,7 +11,7 @@
 //    (sampled over both surfaces); with a bound in millimetres (blocks up to 32 cubes, also on
 //    a sheared grid), within that bound in patient mm; reduced to a triangle count, its count
 //    in the window when said met, the topology kept, within the bound it reports, no
-//    crossings;
+//    crossings; merged and collapsed within the bound alone, the same;
 //  * threads > 1 give the serial output exactly (extraction and type merging);
 //  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
@@ -90,10 +90,12 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const bool close_borders = (settings & 4) == 0;
   const bool try_threads = (settings & 8) != 0;
   // A bound in millimetres (MergeOptions::epsilon_mm), on a sheared grid when bit 5 is set;
-  // bit 6: a triangle count (extract_type_merged_to_count) on top.
+  // bit 6: a triangle count (extract_type_merged_to_count) on top; bit 7, with a bound: the
+  // merge and its locally limited collapses within it (extract_type_merged_within).
   const bool in_mm = (settings & 16) != 0;
   const bool sheared = (settings & 32) != 0;
   const bool to_count = (settings & 64) != 0;
+  const bool within = (settings & 128) != 0;
   const VolumeSize volume_size{in.pick(9), in.pick(9), in.pick(9)};
   // Spacings that shape type merging's blocks (MergeOptions::blocks_follow_spacing): even,
   // thick slices, coarse rows and columns, and three different steps.
@@ -161,33 +163,41 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       violated("type merging left the marching-cubes surface by more than its bound in mm");
     }
   }
+  // A reduced surface: sound, marching cubes' topology, within `bound` mm, no crossings (in
+  // millimetres: the collapses judge crossings on the coordinates written).
+  auto check_reduced = [&](const TriangleMesh& reduced, double bound, const char* what) {
+    check_indices(reduced);
+    const MeshCheck r_check = check_mesh(reduced);
+    check_sound(r_check, close_borders, what);
+    if (r_check.euler_characteristic != mc_check.euler_characteristic ||
+        r_check.components != mc_check.components) {
+      violated("a reduction changed the topology");
+    }
+    TriangleMesh mc_mm = mc;
+    TriangleMesh r_mm = reduced;
+    to_patient(mc_mm, geometry);
+    to_patient(r_mm, geometry);
+    if (surface_distance(mc_mm, r_mm, 0.25, 1).hausdorff() > bound + 1e-3) {
+      violated("a reduction left the marching-cubes surface by more than its bound");
+    }
+    if (!find_self_intersections(r_mm).pairs.empty()) violated("a reduction made crossings");
+  };
   if (to_count && !mc.empty() && close_borders) {
     const std::size_t target = 1 + in.pick(static_cast<unsigned>(
                                        std::min<std::size_t>(mc.triangles.size(), 255)));
     const ReductionResult r =
         extract_type_merged_to_count(volume, iso, options, merge, target, kBoundsMm[in.pick(4)]);
-    check_indices(r.mesh);
-    const MeshCheck r_check = check_mesh(r.mesh);
-    check_sound(r_check, close_borders, "reduced to a count");
     if (r.target_met && (r.mesh.triangles.size() > target ||
                          double(r.mesh.triangles.size()) < 0.99 * double(target))) {
       violated("a count said met is outside its window");
     }
-    if (r_check.euler_characteristic != mc_check.euler_characteristic ||
-        r_check.components != mc_check.components) {
-      violated("reduction to a count changed the topology");
-    }
-    TriangleMesh mc_mm = mc;
-    TriangleMesh r_mm = r.mesh;
-    to_patient(mc_mm, geometry);
-    to_patient(r_mm, geometry);
-    if (surface_distance(mc_mm, r_mm, 0.25, 1).hausdorff() > r.bound_mm + 1e-3) {
-      violated("reduction to a count left the marching-cubes surface by more than its bound");
-    }
-    // In millimetres: the collapses judge crossings on the coordinates written.
-    if (!find_self_intersections(r_mm).pairs.empty()) {
-      violated("reduction to a count made crossing triangles");
-    }
+    check_reduced(r.mesh, r.bound_mm, "reduced to a count");
+  }
+  if (within && in_mm && !mc.empty() && close_borders) {
+    const ReductionResult r =
+        extract_type_merged_within(volume, iso, options, merge, merge.epsilon_mm);
+    if (r.mesh.triangles.size() > tm.triangles.size()) violated("collapses added triangles");
+    check_reduced(r.mesh, merge.epsilon_mm, "merged and collapsed within a bound");
   }
   // No two triangles cross (exact predicates): both by construction (cubes, blocks).
   if (!find_self_intersections(mc).pairs.empty()) violated("marching cubes made crossing triangles");

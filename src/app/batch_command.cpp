@@ -98,11 +98,17 @@ std::string parameter_text(const BatchOptions& options) {
   // Only when not the default, so that manifests of STL batches stay valid.
   if (options.format != "stl") all.push_back("--format=" + options.format);
   // --reduce-to and --max-error changed meaning (quadric decimation → type merging within a
-  // bound in mm): outputs made with the old meaning are not up to date.
-  const bool reduces = std::any_of(all.begin(), all.end(), [](const std::string& a) {
-    return a.rfind("--reduce-to", 0) == 0 || a.rfind("--max-error", 0) == 0;
-  });
-  if (reduces) all.push_back("--reduction=type-merging");
+  // bound in mm), and --max-error alone again (the merge → the merge and its locally limited
+  // collapses): outputs made with an older meaning are not up to date.
+  auto given = [&](const char* option) {
+    return std::any_of(all.begin(), all.end(),
+                       [&](const std::string& a) { return a.rfind(option, 0) == 0; });
+  };
+  if (given("--reduce-to")) {
+    all.push_back("--reduction=type-merging");
+  } else if (given("--max-error")) {
+    all.push_back("--reduction=type-merging,local-collapses");
+  }
   std::sort(all.begin(), all.end());
   std::string text;
   for (const std::string& a : all) text += a + "\n";

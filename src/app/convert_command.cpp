@@ -313,15 +313,23 @@ void add_surface_options(CLI::App& command_group, ConvertOptions& options) {
   command->add_option("--smooth", options.finish_options.smooth_iterations,
                       "Taubin smoothing iterations (volume-preserving; default 0)")
       ->check(CLI::Range(0, 1000));
-  command->add_option("--reduce-to", options.finish_options.reduce_to_triangles,
-                      "Type merging to at most this many triangles (and at least 99 % of it) "
-                      "within the smallest bound that gives them, up to --max-error or 5 voxel "
-                      "steps; every guarantee kept")
-      ->check(CLI::PositiveNumber);
-  command->add_option("--max-error", options.finish_options.max_error_mm,
-                      "Type merging within this distance in mm of the voxels' marching-cubes "
-                      "surface, two-sided over both surfaces (default: half a voxel)")
-      ->check(CLI::PositiveNumber);
+  CLI::Option* reduce_to =
+      command->add_option("--reduce-to", options.finish_options.reduce_to_triangles,
+                          "Type merging to at most this many triangles (and at least 99 % of it) "
+                          "within the smallest bound that gives them, up to --max-error or 5 "
+                          "voxel steps; every guarantee kept")
+          ->check(CLI::PositiveNumber);
+  CLI::Option* max_error =
+      command->add_option("--max-error", options.finish_options.max_error_mm,
+                          "Type merging within this distance in mm of the voxels' marching-cubes "
+                          "surface, two-sided over both surfaces, then bounded collapses within "
+                          "it (default: type merging within half a voxel)")
+          ->check(CLI::PositiveNumber);
+  command->add_flag("--merge-only", options.finish_options.merge_only,
+                    "With --max-error: type merging alone, without the collapses (a fraction of "
+                    "the time, more triangles)")
+      ->needs(max_error)
+      ->excludes(reduce_to);
   command->add_option("--decimator", options.removed_decimator,
                       "Removed: --reduce-to and --max-error are type merging itself now");
   command->add_option("--denoise", options.denoise, "Denoise first: none, gaussian, median, bilateral")

@@ -41,9 +41,11 @@ struct FinishOptions {
   // enabled false too), algorithm tm only (core/bounded_reduction.h). reduce_to_triangles: the
   // smallest bound in mm up to the cap (max_error_mm if given, else kReductionCapSteps × the
   // finest voxel step) giving 0.99 N to N triangles; max_error_mm alone: the merge within that
-  // bound. 0 = not given.
+  // bound, then bounded collapses within it (core::extract_type_merged_within), or the merge
+  // alone with merge_only. 0 = not given.
   std::size_t reduce_to_triangles = 0;
   double max_error_mm = 0.0;
+  bool merge_only = false;  // --merge-only: max_error_mm alone without the collapses
 };
 
 struct PipelineOptions {

@@ -338,8 +338,9 @@ class Collapser {
     }
   }
 
-  // Collapses until `target` (0: while any is allowed).
-  CollapseStats run(std::size_t target) {
+  // Collapses until `target` (0: while any is allowed), passing over candidates whose
+  // quadric estimate exceeds `local_rms` (0: none).
+  CollapseStats run(std::size_t target, double local_rms) {
     assign_reference();
     // Every directed edge once: on a closed oriented surface each is an edge of one triangle
     // in its winding (the reverse is its neighbour's).
@@ -353,6 +354,11 @@ class Collapser {
       const Candidate c = heap_.pop();
       if (stale(c)) continue;
       if (faces_of_[c.from].empty() || held_[c.from]) continue;
+      if (local_rms > 0.0 && c.cost > local_rms * local_rms * plane_weight(c.from, c.to)) {
+        // Not tried now; tried again if a collapse onto either end changes its quadric.
+        ++stats_.passed_over_local_error;
+        continue;
+      }
       if (!collapse(c.from, c.to)) {
         refused_from_[c.from].push_back(c.to);
         continue;
@@ -687,6 +693,14 @@ class Collapser {
     heap_.append(candidate(from, to));
   }
 
+  // The summed weight of the planes in the quadric of edge from → to: the trace of its matrix
+  // (each plane's normal is a unit vector), so cost / weight is the weighted mean square.
+  double plane_weight(std::uint32_t from, std::uint32_t to) const {
+    const auto& a = quadric_[from].q;
+    const auto& b = quadric_[to].q;
+    return a[0] + a[3] + a[5] + b[0] + b[3] + b[5];
+  }
+
   Candidate candidate(std::uint32_t from, std::uint32_t to) const {
     Quadric q = quadric_[from];
     q += quadric_[to];
@@ -940,12 +954,14 @@ class Collapser {
 
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options) {
-  if (!(options.bound > 0.0) || !std::isfinite(options.bound)) {
-    throw std::invalid_argument("collapse_within_bound: the bound must be finite and > 0");
+  if (!(options.bound > 0.0) || !std::isfinite(options.bound) ||
+      !(options.local_rms >= 0.0) || !std::isfinite(options.local_rms)) {
+    throw std::invalid_argument(
+        "collapse_within_bound: the bound must be finite and > 0, local_rms finite and >= 0");
   }
   if (surface.triangles.empty() || reference.triangles.empty()) return {};
   Collapser collapser(surface, reference, options.bound);
-  return collapser.run(options.target);
+  return collapser.run(options.target, options.local_rms);
 }
 
 

@@ -37,7 +37,12 @@
 //
 // Order: the Garland–Heckbert quadric cost of moving u onto v (the planes of the input's
 // triangles around both, area-weighted), smallest first; a candidate u → w refused now is
-// tried again after a collapse onto a neighbour of u (which changes u's triangles).
+// tried again after a collapse onto a neighbour of u (which changes u's triangles). With
+// local_rms, a candidate whose cost over its planes' summed area exceeds local_rms² (the
+// area-weighted root-mean-square distance from v to those planes above local_rms) is passed
+// over, and tried again only once a collapse onto u or v changes its cost: the collapses then
+// stop where each further one would move the surface locally by more than local_rms on
+// average, well before the bound stops them.
 #pragma once
 
 #include <cstddef>
@@ -50,6 +55,7 @@ struct CollapseOptions {
   double bound = 0.0;         // ε, in the meshes' units (> 0)
   std::size_t target = 0;     // stop once at most this many triangles are left; 0: go on
                               // while any collapse is allowed
+  double local_rms = 0.0;     // > 0: only candidates within this quadric estimate (Order, above)
 };
 
 struct CollapseStats {
@@ -58,6 +64,7 @@ struct CollapseStats {
   std::size_t refused_shape = 0;
   std::size_t refused_distance = 0;  // either direction
   std::size_t refused_crossing = 0;
+  std::size_t passed_over_local_error = 0;  // candidates beyond local_rms when popped
   std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first
 };
 
@@ -65,7 +72,8 @@ struct CollapseStats {
 // remove_unreferenced_vertices afterwards) until `options.target` or until no allowed collapse is left.
 // Preconditions, the caller's: `surface` is a closed, oriented 2-manifold without crossing
 // triangles, in the same units and frame as `reference`, and every point of each is within
-// options.bound of the other. Throws std::invalid_argument for a bound not finite and > 0.
+// options.bound of the other. Throws std::invalid_argument for a bound not finite and > 0 or
+// a local_rms not finite and >= 0.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options);
 

@@ -28,7 +28,7 @@ TriangleMesh reference_surface(const Volume& volume, float iso, const ExtractOpt
 }
 
 CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatient& geometry,
-                               TriangleMesh& merged, std::size_t target, double bound_mm) {
+                               TriangleMesh& merged, const CollapseOptions& options) {
   // The collapses judge distances, shapes and crossings in millimetres, on the floats
   // to_patient makes (the ones written); the triangles they leave are then taken back to the
   // index-space positions, undoing to_patient's winding flip.
@@ -36,7 +36,7 @@ CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatie
   work.positions = merged.positions;
   work.triangles = merged.triangles;
   to_patient(work, geometry);
-  const CollapseStats stats = collapse_within_bound(work, reference, {bound_mm, target});
+  const CollapseStats stats = collapse_within_bound(work, reference, options);
   if (geometry.determinant() < 0) {
     for (auto& t : work.triangles) std::swap(t[1], t[2]);
   }
@@ -50,7 +50,28 @@ CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatie
 CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
                                 TriangleMesh& merged, std::size_t target, double bound_mm) {
   return collapse_against(reference_surface(volume, iso, extract), volume.geometry(), merged,
-                          target, bound_mm);
+                          {bound_mm, target});
+}
+
+ReductionResult extract_type_merged_within(const Volume& volume, float iso,
+                                           const ExtractOptions& extract,
+                                           const MergeOptions& options, double bound_mm) {
+  if (!(bound_mm > 0.0) || !std::isfinite(bound_mm)) {
+    throw std::invalid_argument("reduction: the bound must be finite and > 0");
+  }
+  ReductionResult result;
+  MergeOptions at = options;
+  at.epsilon_mm = bound_mm;
+  result.mesh = extract_type_merged(volume, iso, extract, at, &result.stats);
+  result.tries = 1;
+  result.bound_mm = bound_mm;
+  result.target_met = true;  // no count asked
+  if (!result.mesh.triangles.empty()) {
+    result.collapse =
+        collapse_against(reference_surface(volume, iso, extract), volume.geometry(), result.mesh,
+                         {bound_mm, 0, kLocalErrorShare * bound_mm});
+  }
+  return result;
 }
 
 ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
@@ -92,36 +113,33 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
       Try start = bound == cap_mm ? std::move(at_cap) : run(bound);
       if (!reference) reference = reference_surface(volume, iso, extract);
       result.collapse =
-          collapse_against(*reference, volume.geometry(), start.mesh, target, bound);
+          collapse_against(*reference, volume.geometry(), start.mesh, {bound, target});
       if (start.mesh.triangles.size() <= target || bound == cap_mm) return finish(std::move(start));
     }
   }
-  // Bracket: `few` leaves at most target (the smallest such bound so far), `many` more.
+  // Bisection on log(bound) over the bracket [lo, hi]: hi = few's bound, the smallest known to
+  // leave at most target; lo = `many`, the largest known to leave more, or while none is known
+  // a floor of 0.01 mm (finer bounds merge nothing more on CT). It starts near where CT merges
+  // begin to pay (a tenth of the cap) and stops at a count in the window, or once the bracket
+  // is closed to 0.1 %: no bound in between is worth a try.
   std::optional<Try> few = std::move(at_cap);
-  double many = 0.0;  // a bound known to leave more than target (0: the merge at 0 is no better)
-  double low = std::min(cap_mm, 0.01);
-  // Start from a bound near where CT merges begin to pay (a tenth of the cap), then bisect in
-  // log(bound) between `many` (or `low`) and `few`.
+  double many = 0.0;
   double next = cap_mm / 10.0;
   while (result.tries < kMaxTries) {
     Try t = run(next);
     const std::size_t n = t.mesh.triangles.size();
-    if (n <= target) {
+    if (n > target) {
+      many = std::max(many, t.bound);
+    } else {
+      // Any bound in the window meets the target: the smaller of the two is kept, and it ends.
       const bool in_window = n >= low_enough;
       if (t.bound < few->bound) few = std::move(t);
-      if (in_window) {
-        // The smallest bound in the window is not needed: any bound in it meets the target;
-        // keep the smaller one found and stop.
-        break;
-      }
-    } else {
-      many = std::max(many, t.bound);
+      if (in_window) break;
     }
-    const double lo = many > 0.0 ? many : low;
+    const double lo = many > 0.0 ? many : std::min(cap_mm, 0.01);
     const double hi = few->bound;
-    if (hi / lo < 1.0 + 1e-3) break;  // the bracket is closed: no bound in between
+    if (hi / lo < 1.0 + 1e-3) break;
     next = std::sqrt(lo * hi);
-    if (many == 0.0 && lo == low && next <= low * 1.0001) break;
   }
   return finish(std::move(*few));
 }

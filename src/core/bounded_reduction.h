@@ -36,6 +36,10 @@ namespace typemerge::core {
 // The cap's default: this many times the grid's finest step (IndexToPatient::spacing).
 inline constexpr double kReductionCapSteps = 5.0;
 
+// Within a bound alone (extract_type_merged_within), the collapses' local limit
+// (CollapseOptions::local_rms) as a share of the bound.
+inline constexpr double kLocalErrorShare = 0.1;
+
 struct ReductionResult {
   TriangleMesh mesh;        // index space, as extract_type_merged
   MergeStats stats;
@@ -51,6 +55,18 @@ struct ReductionResult {
 // volume, iso and options, in patient millimetres.
 CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
                                 TriangleMesh& merged, std::size_t target, double bound_mm);
+
+// Type merging within bound_mm, then bounded collapses of its surface within the same bound
+// (the second stage above, without a count) as long as each one's local quadric estimate
+// stays within kLocalErrorShare × bound_mm (CollapseOptions::local_rms): the fewer triangles
+// the bound allows at a mean distance near the merge's. Collapsing on until the bound alone
+// stops it takes many times longer and leaves several times the mean distance
+// (docs/benchmarks.md). Every guarantee of the header above holds; target_met is true.
+// `options` gives everything but epsilon_mm. Throws std::invalid_argument for a bound not
+// finite and > 0.
+ReductionResult extract_type_merged_within(const Volume& volume, float iso,
+                                           const ExtractOptions& extract,
+                                           const MergeOptions& options, double bound_mm);
 
 // `options` gives everything but epsilon_mm (its epsilon_voxels is ignored). cap_mm > 0.
 // Throws std::invalid_argument for target 0 or cap_mm not finite and positive.

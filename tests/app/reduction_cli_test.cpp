@@ -80,12 +80,15 @@ std::size_t extracted_triangles(const json& surface) {
   return surface["steps"][0]["triangles"].get<std::size_t>();
 }
 
-TEST(Reduction, MaxErrorAloneIsTypeMergingWithinThatBound) {
+TEST(Reduction, MaxErrorAloneIsTypeMergingAndCollapsesWithinThatBound) {
   const json plain = convert("--iso 300 --finish none", "plain");
   const json bounded = convert("--iso 300 --finish none --max-error 2", "bounded");
   ASSERT_FALSE(bounded.is_null());
   EXPECT_EQ(bounded["reduction"]["bound_mm"].get<double>(), 2.0);
   EXPECT_TRUE(bounded["reduction"]["target_met"].get<bool>());
+  EXPECT_EQ(bounded["reduction"]["extractions"].get<int>(), 1);
+  EXPECT_GT(bounded["reduction"]["collapses"].get<int>(), 0);  // the second stage ran
+  EXPECT_EQ(bounded["reduction"]["triangles"].get<std::size_t>(), extracted_triangles(bounded));
   EXPECT_LE(bounded["distance_to_marching_cubes"]["max_mm"].get<double>(), 2.0 + 1e-3);
   EXPECT_GT(bounded["distance_to_marching_cubes"]["mean_mm"].get<double>(), 0.0);
   EXPECT_TRUE(bounded["validity"]["closed_manifold"].get<bool>());
@@ -244,6 +247,27 @@ TEST(Reduction, DecimatorIsRemovedWithAMessageNamingTheReplacement) {
   EXPECT_EQ(r.exit_code, 2) << r.out;
   EXPECT_NE(r.out.find("--decimator was removed"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("type merging"), std::string::npos) << r.out;
+}
+
+// --merge-only: the merge within the bound, without the collapses (more triangles, the same
+// bound); it needs --max-error and is refused with --reduce-to.
+TEST(Reduction, MergeOnlyLeavesOutTheCollapses) {
+  const json both = convert("--iso 300 --finish none --max-error 2", "merge_and_collapses");
+  const json merged = convert("--iso 300 --finish none --max-error 2 --merge-only", "merge_only");
+  ASSERT_FALSE(merged.is_null());
+  ASSERT_FALSE(both.is_null());
+  EXPECT_EQ(merged["reduction"]["collapses"].get<int>(), 0);
+  EXPECT_EQ(merged["reduction"]["bound_mm"].get<double>(), 2.0);
+  EXPECT_LE(merged["distance_to_marching_cubes"]["max_mm"].get<double>(), 2.0 + 1e-3);
+  EXPECT_TRUE(merged["validity"]["closed_manifold"].get<bool>());
+  EXPECT_EQ(extracted_triangles(merged),
+            extracted_triangles(both) + 2 * both["reduction"]["collapses"].get<std::size_t>());
+  for (const char* options : {"--merge-only", "--merge-only --max-error 1 --reduce-to 100"}) {
+    const CommandRun r = run("convert " + body_series().string() + " --iso 300 " + options +
+                             " -o " + (fresh_dir("reduction_merge_only") / "x.stl").string());
+    EXPECT_EQ(r.exit_code, 2) << options << ": " << r.out;
+    EXPECT_NE(r.out.find("--merge-only"), std::string::npos) << r.out;
+  }
 }
 
 TEST(Reduction, BadValuesAreRefused) {

@@ -8,6 +8,7 @@
 #include <random>
 #include <set>
 #include <stdexcept>
+#include <vector>
 
 #include "core/marching_cubes.h"
 #include "core/mesh_checks.h"
@@ -135,12 +136,40 @@ TEST(BoundedCollapse, CloseLayersDoNotCollapseIntoEachOther) {
   expect_guarantees(s.mc, s.merged, collapsed, 3.0);
 }
 
+// local_rms passes over the candidates whose quadric estimate exceeds it: fewer collapses
+// than the bound alone allows, more the larger it is, every guarantee kept; a limit no
+// candidate meets makes none.
+TEST(BoundedCollapse, ALocalLimitStopsBeforeTheBound) {
+  const Volume volume = blobs(11);
+  const Surfaces s = surfaces_of(volume, 0.0f, 1.0);
+  std::vector<std::size_t> collapses;
+  for (const double local_rms : {0.0, 0.15, 0.05}) {
+    SCOPED_TRACE(local_rms);
+    TriangleMesh collapsed = s.merged;
+    const CollapseStats stats = collapse_within_bound(collapsed, s.mc, {1.5, 0, local_rms});
+    remove_unreferenced_vertices(collapsed);
+    EXPECT_EQ(stats.passed_over_local_error > 0, local_rms > 0.0);
+    EXPECT_EQ(collapsed.triangles.size(), s.merged.triangles.size() - 2 * stats.collapses);
+    expect_guarantees(s.mc, s.merged, collapsed, 1.5);
+    collapses.push_back(stats.collapses);
+  }
+  EXPECT_GT(collapses[2], 0u);
+  EXPECT_LT(collapses[2], collapses[1]);
+  EXPECT_LT(collapses[1], collapses[0]);
+  TriangleMesh untouched = s.merged;
+  const CollapseStats none = collapse_within_bound(untouched, s.mc, {1.5, 0, 1e-9});
+  EXPECT_EQ(none.collapses, 0u);
+  EXPECT_EQ(untouched.triangles, s.merged.triangles);
+}
+
 TEST(BoundedCollapse, RejectsABadBound) {
   const Volume volume = blobs(3);
   Surfaces s = surfaces_of(volume, 0.0f, 1.0);
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {0.0, 0}), std::invalid_argument);
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {NAN, 0}), std::invalid_argument);
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {INFINITY, 0}), std::invalid_argument);
+  EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {1.0, 0, -0.1}), std::invalid_argument);
+  EXPECT_THROW(collapse_within_bound(s.merged, s.mc, {1.0, 0, NAN}), std::invalid_argument);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
-// extract_type_merged_to_count (core/bounded_reduction.h): the count window, the bound the
-// surface keeps, the cap, and the collapses where merging alone cannot reach the count.
+// extract_type_merged_to_count and extract_type_merged_within (core/bounded_reduction.h): the
+// count window, the bound the surface keeps, the cap, the collapses where merging alone cannot
+// reach the count, and the locally limited collapses within a bound alone.
 #include "core/bounded_reduction.h"
 
 #include <gtest/gtest.h>
@@ -92,6 +93,34 @@ TEST(BoundedReduction, ACountOutOfReachCollapsesAsFarAsTheCapAllows) {
   const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), at_cap);
   EXPECT_EQ(r.mesh.triangles.size(), merged.triangles.size() - 2 * r.collapse.collapses);
   expect_sound_within(volume, r.mesh, 1.0);
+}
+
+// Within a bound alone: the merge, then collapses within the same bound, each within a tenth
+// of it locally: fewer triangles than the merge, sound within the bound, and fewer collapses
+// than the bound alone would allow.
+TEST(BoundedReduction, WithinABoundCollapsesTheMergeLocallyLimited) {
+  const Volume volume = blobs();
+  for (const double bound : {0.5, 2.0}) {
+    SCOPED_TRACE(bound);
+    const ReductionResult r = extract_type_merged_within(volume, 0.0f, one_thread(), {}, bound);
+    MergeOptions merge;
+    merge.epsilon_mm = bound;
+    const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), merge);
+    EXPECT_TRUE(r.target_met);
+    EXPECT_EQ(r.bound_mm, bound);
+    EXPECT_EQ(r.tries, 1u);
+    EXPECT_GT(r.collapse.collapses, 0u);
+    EXPECT_GT(r.collapse.passed_over_local_error, 0u);
+    EXPECT_EQ(r.mesh.triangles.size(), merged.triangles.size() - 2 * r.collapse.collapses);
+    expect_sound_within(volume, r.mesh, bound);
+    TriangleMesh exhausted = merged;
+    const CollapseStats all = collapse_to_count(volume, 0.0f, one_thread(), exhausted, 0, bound);
+    EXPECT_LT(r.collapse.collapses, all.collapses);
+  }
+  EXPECT_THROW(extract_type_merged_within(volume, 0.0f, one_thread(), {}, 0.0),
+               std::invalid_argument);
+  EXPECT_THROW(extract_type_merged_within(volume, 0.0f, one_thread(), {}, INFINITY),
+               std::invalid_argument);
 }
 
 TEST(BoundedReduction, RejectsBadArguments) {
