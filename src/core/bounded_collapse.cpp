@@ -336,6 +336,28 @@ class Collapser {
       for (auto v : t) faces_of_[v].push_back(f);
       grid_.insert(f, box_of(t));
     }
+    hold_border();
+  }
+
+  // The ends of every edge in one triangle only (a surface left open where it meets the
+  // volume's border) are held: the border stays as it is, and every vertex collapsed away has
+  // a closed fan of triangles around it.
+  void hold_border() {
+    for (std::uint32_t v = 0; v < faces_of_.size(); ++v) {
+      for (std::uint32_t f : faces_of_[v]) {
+        const Triangle& t = s_.triangles[f];
+        const int k = t[0] == v ? 0 : t[1] == v ? 1 : 2;
+        const std::uint32_t next = t[(k + 1) % 3];
+        // Its neighbour across v → next runs next → v.
+        const bool shared = std::any_of(
+            faces_of_[next].begin(), faces_of_[next].end(), [&](std::uint32_t g) {
+              const Triangle& o = s_.triangles[g];
+              return (o[0] == next && o[1] == v) || (o[1] == next && o[2] == v) ||
+                     (o[2] == next && o[0] == v);
+            });
+        if (!shared) held_[v] = held_[next] = 1;
+      }
+    }
   }
 
   // Collapses until `target` (0: while any is allowed), passing over candidates whose
@@ -767,7 +789,10 @@ class Collapser {
         changed_.push_back(f);
       }
     }
-    if (n_edge != 2 || opposite[0] == opposite[1]) return refuse(stats_.refused_topology);
+    // (changed_ empty: u has no triangle off uv, which a vertex of a closed fan cannot.)
+    if (n_edge != 2 || opposite[0] == opposite[1] || changed_.empty()) {
+      return refuse(stats_.refused_topology);
+    }
     // Link condition: the common neighbours of u and v are the two opposite corners.
     neighbours(u, ring_u_);
     neighbours(v, ring_v_);

@@ -8,7 +8,8 @@
 // A collapse is made only when all of these hold (otherwise the surface is left as it was):
 //  - topology: the link condition (the common neighbours of u and v are exactly the two
 //    vertices opposite uv) and both of those keep three or more neighbours. A closed, oriented
-//    2-manifold stays one, with the same Euler characteristic and components;
+//    2-manifold stays one, with the same Euler characteristic and components (an open one
+//    too, its border kept: see collapse_within_bound);
 //  - no crossing: every new triangle is tested with the exact predicates of
 //    self_intersections.h against every live triangle whose box its box meets (a dynamic
 //    hashed grid) and against the other new triangles; a pair is passed over without it only
@@ -70,9 +71,11 @@ struct CollapseStats {
 
 // Collapses `surface` in place (triangles only: positions are kept, unused ones stay unused;
 // remove_unreferenced_vertices afterwards) until `options.target` or until no allowed collapse is left.
-// Preconditions, the caller's: `surface` is a closed, oriented 2-manifold without crossing
+// Preconditions, the caller's: `surface` is an oriented 2-manifold without crossing
 // triangles, in the same units and frame as `reference`, and every point of each is within
-// options.bound of the other. Throws std::invalid_argument for a bound not finite and > 0 or
+// options.bound of the other. Where it is open (edges in one triangle: a surface left open at
+// the volume's border), the vertices of those edges are never collapsed away, so its border
+// stays as it is. Throws std::invalid_argument for a bound not finite and > 0 or
 // a local_rms not finite and >= 0.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options);

@@ -270,6 +270,28 @@ TEST(Reduction, MergeOnlyLeavesOutTheCollapses) {
   }
 }
 
+// --open-borders: the body (0 HU) is open where the volume cuts it; the collapses keep that
+// border as it is (its vertices are never collapsed away) and every other guarantee.
+TEST(Reduction, OpenBordersKeepTheirBorder) {
+  const json open = convert("--iso 0 --finish none --open-borders --max-error 2 --merge-only",
+                            "open_merged");
+  ASSERT_FALSE(open.is_null());
+  ASSERT_GT(open["validity"]["boundary_edges"].get<int>(), 0);  // the body meets the border
+  for (const char* options : {"--max-error 2", "--reduce-to 200"}) {
+    SCOPED_TRACE(options);
+    const json r = convert(std::string("--iso 0 --finish none --open-borders ") + options,
+                           "open_reduced");
+    ASSERT_FALSE(r.is_null());
+    EXPECT_GT(r["reduction"]["collapses"].get<int>(), 0);
+    EXPECT_EQ(r["validity"]["boundary_edges"], open["validity"]["boundary_edges"]);
+    EXPECT_EQ(r["validity"]["non_manifold_edges"].get<int>(), 0);
+    EXPECT_EQ(r["validity"]["non_manifold_vertices"].get<int>(), 0);
+    EXPECT_EQ(r["validity"]["euler_characteristic"], open["validity"]["euler_characteristic"]);
+    EXPECT_LE(r["distance_to_marching_cubes"]["max_mm"].get<double>(),
+              r["reduction"]["bound_mm"].get<double>() + 1e-3);
+  }
+}
+
 TEST(Reduction, BadValuesAreRefused) {
   for (const char* option : {"--max-error 0", "--max-error -1", "--reduce-to 0", "--reduce-to x"}) {
     const CommandRun r = run("convert " + body_series().string() + " --iso 300 " + option +

@@ -162,6 +162,43 @@ TEST(BoundedCollapse, ALocalLimitStopsBeforeTheBound) {
   EXPECT_EQ(untouched.triangles, s.merged.triangles);
 }
 
+// A surface left open at the volume's border (close_borders off): the border's vertices are
+// never collapsed away, so the border edges stay, with the topology and every other guarantee.
+TEST(BoundedCollapse, AnOpenSurfaceKeepsItsBorder) {
+  Volume volume = test::sample_volume(28, 28, 20, [](double x, double y, double z) {
+    return 14.0 - std::hypot(x - 4.0, y - 6.0, z - 3.0) + std::sin(0.5 * x) * std::cos(0.4 * y);
+  });
+  IndexToPatient geometry;
+  geometry.axes = {{{0.8, 0, 0}, {0, 0.8, 0}, {0, 0, 1.5}}};
+  volume.set_geometry(geometry);
+  ExtractOptions open = one_thread();
+  open.close_borders = false;
+  TriangleMesh mc = extract_isosurface(volume, 0.0f, open);
+  MergeOptions merge;
+  merge.epsilon_mm = 1.0;
+  TriangleMesh merged = extract_type_merged(volume, 0.0f, open, merge);
+  to_patient(mc, geometry);
+  to_patient(merged, geometry);
+  const MeshCheck before = check_mesh(merged);
+  ASSERT_GT(before.boundary_edges, 0u);
+  TriangleMesh collapsed = merged;
+  for (const double local_rms : {0.0, 0.1}) {
+    collapsed = merged;
+    const CollapseStats stats = collapse_within_bound(collapsed, mc, {1.0, 0, local_rms});
+    remove_unreferenced_vertices(collapsed);
+    EXPECT_GT(stats.collapses, 0u);
+    const MeshCheck after = check_mesh(collapsed);
+    EXPECT_EQ(after.boundary_edges, before.boundary_edges);
+    EXPECT_EQ(after.non_manifold_edges, 0u);
+    EXPECT_EQ(after.non_manifold_vertices, 0u);
+    EXPECT_EQ(after.inconsistent_edges, 0u);
+    EXPECT_EQ(after.euler_characteristic, before.euler_characteristic);
+    EXPECT_EQ(after.components, before.components);
+    EXPECT_TRUE(find_self_intersections(collapsed).pairs.empty());
+    EXPECT_LE(surface_distance(mc, collapsed, 0.1, 1).hausdorff(), 1.0 + 1e-3);
+  }
+}
+
 TEST(BoundedCollapse, RejectsABadBound) {
   const Volume volume = blobs(3);
   Surfaces s = surfaces_of(volume, 0.0f, 1.0);
