@@ -185,13 +185,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
               std::to_string(mesh.triangles.size()) + " triangles within " +
               number(reduced.bound_mm) + " mm (the bound's cap is " + number(cap) + " mm)");
         }
-      } else if (finish.max_error_mm > 0 && finish.merge_only) {
-        core::MergeOptions merge;
-        merge.epsilon_mm = finish.max_error_mm;
-        mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
-        result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,
-                                            finish.max_error_mm, true, 1, 0};
-      } else if (finish.max_error_mm > 0) {
+      } else if (finish.max_error_mm > 0 && !finish.merge_only) {
         core::ReductionResult reduced = core::extract_type_merged_within(
             source, iso, extract, {}, finish.max_error_mm);
         mesh = std::move(reduced.mesh);
@@ -200,7 +194,13 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                                             finish.max_error_mm, true, reduced.tries,
                                             reduced.collapse.collapses};
       } else {
-        mesh = core::extract_type_merged(source, iso, extract, {}, &stats);  // half a voxel
+        core::MergeOptions merge;
+        merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
+        mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
+        if (finish.max_error_mm > 0) {
+          result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,
+                                              finish.max_error_mm, true, 1, 0};
+        }
       }
       std::size_t disks = 0;
       for (std::size_t n : stats.blocks_merged) disks += n;

@@ -345,17 +345,14 @@ class Collapser {
   void hold_border() {
     for (std::uint32_t v = 0; v < faces_of_.size(); ++v) {
       for (std::uint32_t f : faces_of_[v]) {
-        const Triangle& t = s_.triangles[f];
-        const int k = t[0] == v ? 0 : t[1] == v ? 1 : 2;
-        const std::uint32_t next = t[(k + 1) % 3];
-        // Its neighbour across v → next runs next → v.
-        const bool shared = std::any_of(
-            faces_of_[next].begin(), faces_of_[next].end(), [&](std::uint32_t g) {
-              const Triangle& o = s_.triangles[g];
-              return (o[0] == next && o[1] == v) || (o[1] == next && o[2] == v) ||
-                     (o[2] == next && o[0] == v);
-            });
-        if (!shared) held_[v] = held_[next] = 1;
+        for (std::uint32_t w : s_.triangles[f]) {
+          const auto on_vw = std::count_if(
+              faces_of_[v].begin(), faces_of_[v].end(), [&](std::uint32_t g) {
+                const Triangle& t = s_.triangles[g];
+                return t[0] == w || t[1] == w || t[2] == w;
+              });
+          if (w != v && on_vw == 1) held_[v] = held_[w] = 1;
+        }
       }
     }
   }
