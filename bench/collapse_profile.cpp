@@ -4,12 +4,14 @@
 // target, on one thread, and prints its counters.
 //
 //   collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300] [--targets 0.25,0.1]
-//                    [--bound-steps 2.5] [--local-share 0] [--repeat 1]
+//                    [--bound-steps 2.5] [--local-share 0] [--place 0] [--repeat 1]
 //
 // --targets: shares of marching cubes' triangles; --bound-steps: the bound in finest voxel
 // steps (2.5 = half of kReductionCapSteps, where --reduce-to collapses first); --local-share:
 // CollapseOptions::local_rms as a share of the bound (0: none; --max-error uses
-// kLocalErrorShare), with targets of 0 to collapse as far as that allows. Run under
+// kLocalErrorShare), with targets of 0 to collapse as far as that allows; --place 1: with
+// placement (CollapseOptions::move_vertices, in patient mm), and the mean distance printed.
+// Run under
 // `perf record -g` or `valgrind --tool=callgrind` to see where the collapse time goes.
 #include <algorithm>
 #include <chrono>
@@ -21,6 +23,7 @@
 #include "core/bounded_collapse.h"
 #include "core/bounded_reduction.h"
 #include "core/marching_cubes.h"
+#include "core/mesh_distance.h"
 #include "core/type_merging.h"
 #include "default_series.h"
 #include "list_argument.h"
@@ -41,7 +44,7 @@ double cpu_ms() {
 int usage() {
   std::fprintf(stderr,
                "usage: collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300]\n"
-               "         [--targets 0.25,0.1] [--bound-steps 2.5] [--local-share 0]\n"
+               "         [--targets 0.25,0.1] [--bound-steps 2.5] [--local-share 0] [--place 0]\n"
                "         [--repeat 1]\n");
   return 2;
 }
@@ -53,6 +56,7 @@ int main(int argc, char** argv) {
   std::string series_dir, synthetic, iso_list = "300", targets = "0.25,0.1";
   double bound_steps = 0.5 * core::kReductionCapSteps;
   double local_share = 0.0;
+  bool place = false;
   int repeat = 1;
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string key = argv[i];
@@ -63,6 +67,7 @@ int main(int argc, char** argv) {
     else if (key == "--targets") targets = value;
     else if (key == "--bound-steps") bound_steps = std::stod(value);
     else if (key == "--local-share") local_share = std::stod(value);
+    else if (key == "--place") place = value != "0";
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
     else return usage();
   }
@@ -98,16 +103,19 @@ int main(int argc, char** argv) {
         core::TriangleMesh work = merged;
         const auto start = Clock::now();
         const double cpu_start = cpu_ms();
-        const core::CollapseStats s = core::collapse_within_bound(work, reference,
-                                                                 {bound, n, local_share * bound});
+        core::CollapseOptions collapse{bound, n, local_share * bound};
+        collapse.move_vertices = place;
+        const core::CollapseStats s = core::collapse_within_bound(work, reference, collapse);
         const double cpu = cpu_ms() - cpu_start;
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+        core::remove_unreferenced_vertices(work);
+        const core::SymmetricMeshDistance d = core::surface_distance(reference, work, 0.5, 1);
         std::printf("  target %zu (%s): %.1f ms (CPU %.1f ms), %zu triangles; %zu collapses; "
                     "refused %zu topology, %zu shape, %zu distance, %zu crossing; %zu held; "
-                    "%zu passed over\n",
+                    "%zu passed over; distance max %.3f mean %.4f mm\n",
                     n, share.c_str(), ms, cpu, work.triangles.size(), s.collapses, s.refused_topology,
                     s.refused_shape, s.refused_distance, s.refused_crossing,
-                    s.held_reference_triangles, s.passed_over_local_error);
+                    s.held_reference_triangles, s.passed_over_local_error, d.hausdorff(), d.mean());
       }
     }
   }

@@ -99,7 +99,8 @@ std::string parameter_text(const BatchOptions& options) {
   if (options.format != "stl") all.push_back("--format=" + options.format);
   // --reduce-to and --max-error changed meaning (quadric decimation → type merging within a
   // bound in mm), and --max-error alone again (the merge → the merge and its locally limited
-  // collapses): outputs made with an older meaning are not up to date.
+  // collapses → those collapses moving the kept vertex): outputs made with an older meaning
+  // are not up to date.
   auto given = [&](const char* option) {
     return std::any_of(all.begin(), all.end(),
                        [&](const std::string& a) { return a.rfind(option, 0) == 0; });
@@ -107,7 +108,7 @@ std::string parameter_text(const BatchOptions& options) {
   if (given("--reduce-to")) {
     all.push_back("--reduction=type-merging");
   } else if (given("--max-error")) {
-    all.push_back("--reduction=type-merging,local-collapses");
+    all.push_back("--reduction=type-merging,local-collapses,placement");
   }
   std::sort(all.begin(), all.end());
   std::string text;

@@ -36,6 +36,12 @@ constexpr int kBisectDepth = 2;
 constexpr double kMinTurnCosine = 0.2079;
 // The crossing grid's cell, in mean edges of the live triangles.
 constexpr double kCellEdges = 4.0;
+// Placement's regularisation: the quadric's matrix plus this share of its trace times the
+// identity, so that directions the planes leave free do not move the point.
+constexpr double kRegularization = 1e-3;
+// Placement leaves the kept vertex where it is when its point is this share of ε or less
+// away (a move that small changes every triangle around it for nothing measurable).
+constexpr double kStayShare = 0.01;
 
 Point3 sub(const Point3& a, const Point3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 double dot(const Point3& a, const Point3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
@@ -298,13 +304,28 @@ class CandidateHeap {
 
 class Collapser {
  public:
-  Collapser(TriangleMesh& surface, const TriangleMesh& reference, double bound)
+  Collapser(TriangleMesh& surface, const TriangleMesh& reference, const CollapseOptions& options)
       : s_(surface),
         ref_(reference),
-        eps_(bound),
-        eps2_(bound * bound),
+        eps_(options.bound),
+        eps2_(options.bound * options.bound),
+        move_(options.move_vertices),
+        geometry_(options.geometry),
+        frame_(options.frame),
         ref_grid_(reference),
         grid_(make_grid(surface)) {
+    if (geometry_ != nullptr) {
+      // The inverse of the index → patient map's linear part (columns: the axes), by cofactors.
+      const auto& a = geometry_->axes;
+      const double det = geometry_->determinant();
+      auto cross = [](const Vec3& x, const Vec3& y) {
+        return Point3{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]};
+      };
+      inverse_ = {cross(a[1], a[2]), cross(a[2], a[0]), cross(a[0], a[1])};
+      for (auto& row : inverse_) {
+        for (double& x : row) x /= det;
+      }
+    }
     const std::size_t nv = s_.positions.size();
     const std::size_t nf = s_.triangles.size();
     pos_.resize(nv);
@@ -360,6 +381,7 @@ class Collapser {
   // Collapses until `target` (0: while any is allowed), passing over candidates whose
   // quadric estimate exceeds `local_rms` (0: none).
   CollapseStats run(std::size_t target, double local_rms) {
+    local_rms2_ = local_rms * local_rms;
     assign_reference();
     // Every directed edge once: on a closed oriented surface each is an edge of one triangle
     // in its winding (the reverse is its neighbour's).
@@ -373,11 +395,6 @@ class Collapser {
       const Candidate c = heap_.pop();
       if (stale(c)) continue;
       if (faces_of_[c.from].empty() || held_[c.from]) continue;
-      if (local_rms > 0.0 && c.cost > local_rms * local_rms * plane_weight(c.from, c.to)) {
-        // Not tried now; tried again if a collapse onto either end changes its quadric.
-        ++stats_.passed_over_local_error;
-        continue;
-      }
       if (!collapse(c.from, c.to)) {
         refused_from_[c.from].push_back(c.to);
         continue;
@@ -642,11 +659,14 @@ class Collapser {
   }
 
   // An upper bound of the distance from surface vertex w to the reference (infinite when it is
-  // ε or more), searched once a vertex (no vertex moves).
+  // ε or more), searched once a vertex and again when it moves. The search stops at the first
+  // reference triangle through w (a distance of 0, the nearest), as for every vertex of a
+  // type-merged surface not moved, made of marching cubes' vertices.
   double vertex_distance(std::uint32_t w) {
     double& d = vertex_distance_[w];
     if (d < 0.0) {
-      const double d2 = ref_grid_.nearest_squared(pos_[w], ref_stamp_, next_query(), eps_);
+      const double d2 = ref_grid_.nearest_squared(pos_[w], ref_stamp_, next_query(), eps_,
+                                                  nullptr, std::numeric_limits<double>::min());
       d = d2 < eps2_ ? std::sqrt(d2) : std::numeric_limits<double>::infinity();
     }
     return d;
@@ -699,7 +719,19 @@ class Collapser {
 
   void push_heap(std::uint32_t from, std::uint32_t to) {
     if (held_[from]) return;
-    heap_.push(candidate(from, to));
+    const Candidate c = candidate(from, to);
+    if (!beyond_local_limit(c)) heap_.push(c);
+  }
+
+  // A candidate whose quadric estimate exceeds the local limit is never queued (popped, it
+  // would be passed over: its cost stays as it is until a collapse onto either end changes
+  // its quadric, which queues it anew), so the queue holds only what may be tried.
+  bool beyond_local_limit(const Candidate& c) {
+    if (local_rms2_ > 0.0 && c.cost > local_rms2_ * plane_weight(c.from, c.to)) {
+      ++stats_.passed_over_local_error;
+      return true;
+    }
+    return false;
   }
 
   bool stale(const Candidate& c) const {
@@ -709,7 +741,8 @@ class Collapser {
   // Appends the candidate u → v (a heap only once run() has made it one).
   void push(std::uint32_t from, std::uint32_t to) {
     if (held_[from]) return;
-    heap_.append(candidate(from, to));
+    const Candidate c = candidate(from, to);
+    if (!beyond_local_limit(c)) heap_.append(c);
   }
 
   // The summed weight of the planes in the quadric of edge from → to: the trace of its matrix
@@ -723,7 +756,75 @@ class Collapser {
   Candidate candidate(std::uint32_t from, std::uint32_t to) const {
     Quadric q = quadric_[from];
     q += quadric_[to];
-    return {std::max(q.at(pos_[to]), 0.0), from, to, version_[from], version_[to]};
+    return {std::max(q.at(place(from, to).at), 0.0), from, to, version_[from], version_[to]};
+  }
+
+  // Where a collapse from → to leaves `to` (its own position without placement or when held),
+  // as a float point of the frame and its exact position in the surface's.
+  struct Placement {
+    Point3 at;
+    std::array<float, 3> frame;
+  };
+  Placement place(std::uint32_t from, std::uint32_t to) const {
+    if (!move_ || held_[to]) return {pos_[to], {}};
+    return realize(quadric_point(from, to));
+  }
+
+  // The point minimising the edge's quadric, regularised towards `to` (solved around it, by
+  // cofactors): `to` moves along what the planes around the edge fix, hardly along what they
+  // leave free. `to` itself when that point is within kStayShare × ε of it; the quadric's
+  // minimum on the segment when it is more than half the edge away.
+  Point3 quadric_point(std::uint32_t from, std::uint32_t to) const {
+    Quadric sum = quadric_[from];
+    sum += quadric_[to];
+    const auto& a = sum.q;
+    auto times = [&](const Point3& x) {  // A x
+      return Point3{a[0] * x[0] + a[1] * x[1] + a[2] * x[2], a[1] * x[0] + a[3] * x[1] + a[4] * x[2],
+                    a[2] * x[0] + a[4] * x[1] + a[5] * x[2]};
+    };
+    const Point3& pv = pos_[to];
+    const Point3 e = sub(pos_[from], pv);
+    const Point3 av = times(pv);
+    const Point3 g = {av[0] + a[6], av[1] + a[7], av[2] + a[8]};  // half the gradient at v
+    // (A + μ I) x = −g: μ, a small share of the trace, keeps x near 0 along directions the
+    // planes leave free (a flat or cylindrical neighbourhood), where A alone is singular.
+    const double trace = a[0] + a[3] + a[5];
+    if (!(trace > 0.0)) return pv;
+    const double mu = kRegularization * trace;
+    const double a0 = a[0] + mu, a3 = a[3] + mu, a5 = a[5] + mu;
+    const double c00 = a3 * a5 - a[4] * a[4], c01 = a[2] * a[4] - a[1] * a5,
+                 c02 = a[1] * a[4] - a[2] * a3, c11 = a0 * a5 - a[2] * a[2],
+                 c12 = a[1] * a[2] - a0 * a[4], c22 = a0 * a3 - a[1] * a[1];
+    const double det = a0 * c00 + a[1] * c01 + a[2] * c02;
+    if (det > 0.0) {
+      const Point3 x = {-(c00 * g[0] + c01 * g[1] + c02 * g[2]) / det,
+                        -(c01 * g[0] + c11 * g[1] + c12 * g[2]) / det,
+                        -(c02 * g[0] + c12 * g[1] + c22 * g[2]) / det};
+      if (dot(x, x) <= kStayShare * kStayShare * eps2_) return pv;
+      if (dot(x, x) <= 0.25 * dot(e, e)) return {pv[0] + x[0], pv[1] + x[1], pv[2] + x[2]};
+    }
+    const double eae = dot(e, times(e));
+    if (!(eae > 0.0)) return pv;
+    const double t = std::clamp(-dot(e, g) / eae, 0.0, 1.0);
+    return {pv[0] + t * e[0], pv[1] + t * e[1], pv[2] + t * e[2]};
+  }
+
+  // p as a float point of the frame and the surface position to_patient makes of it (or p
+  // rounded to float, without a geometry).
+  Placement realize(const Point3& p) const {
+    Placement out;
+    if (geometry_ == nullptr) {
+      for (int a = 0; a < 3; ++a) {
+        out.frame[a] = static_cast<float>(p[a]);
+        out.at[a] = out.frame[a];
+      }
+      return out;
+    }
+    const Point3 d = sub(p, {geometry_->origin[0], geometry_->origin[1], geometry_->origin[2]});
+    for (int a = 0; a < 3; ++a) out.frame[a] = static_cast<float>(dot(inverse_[a], d));
+    const Vec3 q = geometry_->apply(out.frame[0], out.frame[1], out.frame[2]);
+    for (int a = 0; a < 3; ++a) out.at[a] = static_cast<float>(q[a]);
+    return out;
   }
 
   // Neighbours of v (each once; marks them in mark_ with a new stamp).
@@ -807,27 +908,59 @@ class Collapser {
       return refuse(stats_.refused_topology);
     }
 
+    // Where v goes: when it moves, its own triangles off uv change too.
+    const std::size_t of_u = changed_.size();
+    const Placement placed = place(u, v);
+    const bool moves = placed.at != pos_[v];
+    if (moves) {
+      for (std::uint32_t f : faces_of_[v]) {
+        if (f != on_edge[0] && f != on_edge[1]) changed_.push_back(f);
+      }
+    }
+    // Boxes and area vectors before anything moves.
+    old_boxes_.clear();
+    old_normals_.clear();
+    for (std::uint32_t f : changed_) {
+      old_boxes_.push_back(box_of(s_.triangles[f]));
+      old_normals_.push_back(triangle_area_vector(s_, s_.triangles[f]));
+    }
+    const Box edge_boxes[2] = {box_of(s_.triangles[on_edge[0]]), box_of(s_.triangles[on_edge[1]])};
+    // v at its place while tested (back where it was if refused).
+    const Point3 v_was = pos_[v];
+    const std::array<float, 3> v_was_stored = s_.positions[v];
+    const double v_distance_was = vertex_distance_[v];
+    if (moves) {
+      pos_[v] = placed.at;
+      for (int a = 0; a < 3; ++a) s_.positions[v][a] = static_cast<float>(placed.at[a]);
+      vertex_distance_[v] = -1.0;
+    }
+    auto put_back = [&](std::size_t& counter) {
+      if (moves) {
+        pos_[v] = v_was;
+        s_.positions[v] = v_was_stored;
+        vertex_distance_[v] = v_distance_was;
+      }
+      return refuse(counter);
+    };
+
     // New triangles: shape, turn, distance to the reference.
     new_tri_.clear();
-    for (std::uint32_t f : changed_) {
-      Triangle t = s_.triangles[f];
+    for (std::size_t k = 0; k < changed_.size(); ++k) {
+      Triangle t = s_.triangles[changed_[k]];
       for (auto& w : t) {
         if (w == u) w = v;
       }
       const ExtremeAngles shape = extreme_angles_of(pos_[t[0]], pos_[t[1]], pos_[t[2]]);
-      if (shape.above_170 != 0 || shape.below_1 != 0) return refuse(stats_.refused_shape);
-      const Triangle& old = s_.triangles[f];
+      if (shape.above_170 != 0 || shape.below_1 != 0) return put_back(stats_.refused_shape);
       const Point3 n_new = triangle_area_vector(s_, t);
-      const Point3 n_old = triangle_area_vector(s_, old);
+      const Point3& n_old = old_normals_[k];
       if (dot(n_new, n_old) < kMinTurnCosine * std::sqrt(dot(n_new, n_new) * dot(n_old, n_old))) {
-        return refuse(stats_.refused_shape);
+        return put_back(stats_.refused_shape);
       }
       new_tri_.push_back(t);
     }
     for (const Triangle& t : new_tri_) {
-      if (!triangle_near_reference(t)) {
-        return refuse(stats_.refused_distance);
-      }
+      if (!triangle_near_reference(t)) return put_back(stats_.refused_distance);
     }
 
     // Crossings, with the new triangles in place (undone when refused).
@@ -876,13 +1009,15 @@ class Collapser {
     }
     if (crossing) {
       undo();
-      return refuse(stats_.refused_crossing);
+      return put_back(stats_.refused_crossing);
     }
 
     // Reference triangles of every triangle changed or gone, to a triangle around v.
     candidates_.assign(changed_.begin(), changed_.end());
-    for (std::uint32_t f : faces_of_[v]) {
-      if (f != on_edge[0] && f != on_edge[1]) candidates_.push_back(f);
+    if (!moves) {
+      for (std::uint32_t f : faces_of_[v]) {
+        if (f != on_edge[0] && f != on_edge[1]) candidates_.push_back(f);
+      }
     }
     reassigned_.clear();
     // A changed triangle's parts first to its new shape (most stay covered by it).
@@ -897,16 +1032,16 @@ class Collapser {
     for (std::size_t k = 0; k < changed_.size() && covered; ++k) covered = reassign_all(changed_[k]);
     if (!covered) {
       undo();
-      return refuse(stats_.refused_distance);
+      return put_back(stats_.refused_distance);
     }
 
     // Commit.
     for (std::size_t k = 0; k < changed_.size(); ++k) {
-      grid_.erase(changed_[k], box_of(old_tri_[k]));
+      grid_.erase(changed_[k], old_boxes_[k]);
       grid_.insert(changed_[k], box_of(new_tri_[k]));
     }
     for (int e = 0; e < 2; ++e) {
-      grid_.erase(on_edge[e], box_of(s_.triangles[on_edge[e]]));
+      grid_.erase(on_edge[e], edge_boxes[e]);
       refs_of_[on_edge[e]].clear();
       auto drop = [&](std::uint32_t w) {
         auto& list = faces_of_[w];
@@ -915,11 +1050,10 @@ class Collapser {
       drop(v);
       drop(opposite[e]);
     }
-    for (std::uint32_t f : changed_) {
-      refs_of_[f].clear();
-      faces_of_[v].push_back(f);
-    }
+    for (std::uint32_t f : changed_) refs_of_[f].clear();
+    for (std::size_t k = 0; k < of_u; ++k) faces_of_[v].push_back(changed_[k]);
     for (const auto& [to, patch] : reassigned_) refs_of_[to].push_back(patch);
+    if (moves && geometry_ != nullptr) (*frame_)[v] = placed.frame;
     faces_of_[u].clear();
     quadric_[v] += quadric_[u];
     ++version_[u];
@@ -936,6 +1070,10 @@ class Collapser {
   const TriangleMesh& ref_;
   const double eps_;
   const double eps2_;
+  const bool move_;
+  const IndexToPatient* geometry_;
+  std::vector<std::array<float, 3>>* frame_;
+  std::array<Point3, 3> inverse_{};  // rows of the geometry's inverse linear part
   detail::TriangleGrid ref_grid_;
   FaceGrid grid_;
   std::vector<Point3> pos_;
@@ -955,6 +1093,7 @@ class Collapser {
   std::vector<std::uint32_t> ref_stamp_;
   std::vector<double> vertex_distance_;  // < 0: not searched yet
   std::uint32_t query_ = 0;
+  double local_rms2_ = 0.0;  // run()'s local_rms squared; 0: no local limit
   std::size_t live_ = 0;
   std::size_t grid_live_ = 0;  // live triangles when grid_ was made
   CollapseStats stats_;
@@ -967,6 +1106,8 @@ class Collapser {
   std::vector<std::uint32_t> ring_;
   std::vector<std::uint32_t> ring_v_;
   std::vector<std::uint32_t> candidates_;
+  std::vector<Box> old_boxes_;
+  std::vector<Point3> old_normals_;
   std::vector<Box> new_boxes_;
   std::vector<PlaneSide> planes_;
   std::vector<std::pair<std::uint32_t, Patch>> reassigned_;
@@ -981,8 +1122,13 @@ CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& r
     throw std::invalid_argument(
         "collapse_within_bound: the bound must be finite and > 0, local_rms finite and >= 0");
   }
+  if (options.move_vertices && options.geometry != nullptr &&
+      (options.frame == nullptr || options.frame->size() != surface.positions.size())) {
+    throw std::invalid_argument(
+        "collapse_within_bound: placement with a geometry needs one frame position a vertex");
+  }
   if (surface.triangles.empty() || reference.triangles.empty()) return {};
-  Collapser collapser(surface, reference, options.bound);
+  Collapser collapser(surface, reference, options);
   return collapser.run(options.target, options.local_rms);
 }
 

@@ -1,9 +1,16 @@
 // Bounded collapses: fewer triangles on a type-merged surface, every guarantee kept.
 //
 // The second stage of a reduction (bounded_reduction.h), where merging alone cannot reach a
-// count within its bound. Each step is a half-edge collapse u → v: vertex u disappears, every
-// triangle of u not on the edge uv is re-spanned to v, the two on it go. No vertex moves, so
-// every vertex of the result is a vertex of the input, hence of marching cubes' surface.
+// count within its bound. Each step is an edge collapse u → v: vertex u disappears, every
+// triangle of u not on the edge uv is re-spanned to v, the two on it go. Without placement no
+// vertex moves, so every vertex of the result is a vertex of the input. With placement
+// (CollapseOptions::move_vertices), v also moves to the point that minimises the quadric of
+// the edge (the least-squares point of the input's planes around u and v, regularised towards
+// v along directions the planes leave free) when that point lies within half the edge's
+// length of v, else to the quadric's minimum on the segment uv (it stays when the move would
+// be a hundredth of ε or less); then every triangle of v changes too, and every test below is
+// made on all the changed triangles at the moved position. No guarantee rests on vertices
+// staying on the reference: each is tested for every new triangle as it is.
 //
 // A collapse is made only when all of these hold (otherwise the surface is left as it was):
 //  - topology: the link condition (the common neighbours of u and v are exactly the two
@@ -37,7 +44,8 @@
 // to rounding (far below 1e-6 of the coordinates).
 //
 // Order: the Garland–Heckbert quadric cost of moving u onto v (the planes of the input's
-// triangles around both, area-weighted), smallest first; a candidate u → w refused now is
+// triangles around both, area-weighted; at v's placed position with placement), smallest
+// first; a candidate u → w refused now is
 // tried again after a collapse onto a neighbour of u (which changes u's triangles). With
 // local_rms, a candidate whose cost over its planes' summed area exceeds local_rms² (the
 // area-weighted root-mean-square distance from v to those planes above local_rms) is passed
@@ -46,9 +54,12 @@
 // average, well before the bound stops them.
 #pragma once
 
+#include <array>
 #include <cstddef>
+#include <vector>
 
 #include "core/mesh.h"
+#include "core/volume.h"
 
 namespace typemerge::core {
 
@@ -57,6 +68,14 @@ struct CollapseOptions {
   std::size_t target = 0;     // stop once at most this many triangles are left; 0: go on
                               // while any collapse is allowed
   double local_rms = 0.0;     // > 0: only candidates within this quadric estimate (Order, above)
+  // Placement (above): a collapse u → v may move v to its quadric's point. The moved position
+  // is a float point q of `frame` (an index grid), written to the surface as geometry.apply(q)
+  // rounded to float, exactly what to_patient makes of q, and q to (*frame)[v]: so the
+  // surface to_patient makes from `frame` afterwards is the one checked. Without `geometry`,
+  // the surface's own frame (the position rounded to float; `frame` unused).
+  bool move_vertices = false;
+  const IndexToPatient* geometry = nullptr;
+  std::vector<std::array<float, 3>>* frame = nullptr;
 };
 
 struct CollapseStats {
@@ -65,7 +84,7 @@ struct CollapseStats {
   std::size_t refused_shape = 0;
   std::size_t refused_distance = 0;  // either direction
   std::size_t refused_crossing = 0;
-  std::size_t passed_over_local_error = 0;  // candidates beyond local_rms when popped
+  std::size_t passed_over_local_error = 0;  // candidates beyond local_rms, never queued
   std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first
 };
 

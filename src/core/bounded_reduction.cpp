@@ -31,12 +31,17 @@ CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatie
                                TriangleMesh& merged, const CollapseOptions& options) {
   // The collapses judge distances, shapes and crossings in millimetres, on the floats
   // to_patient makes (the ones written); the triangles they leave are then taken back to the
-  // index-space positions, undoing to_patient's winding flip.
+  // index-space positions, undoing to_patient's winding flip, and a vertex they move (with
+  // options.move_vertices) is written to `merged` as the index-space float whose to_patient
+  // is the position checked.
   TriangleMesh work;
   work.positions = merged.positions;
   work.triangles = merged.triangles;
   to_patient(work, geometry);
-  const CollapseStats stats = collapse_within_bound(work, reference, options);
+  CollapseOptions in_frame = options;
+  in_frame.geometry = &geometry;
+  in_frame.frame = &merged.positions;
+  const CollapseStats stats = collapse_within_bound(work, reference, in_frame);
   if (geometry.determinant() < 0) {
     for (auto& t : work.triangles) std::swap(t[1], t[2]);
   }
@@ -69,7 +74,7 @@ ReductionResult extract_type_merged_within(const Volume& volume, float iso,
   if (!result.mesh.triangles.empty()) {
     result.collapse =
         collapse_against(reference_surface(volume, iso, extract), volume.geometry(), result.mesh,
-                         {bound_mm, 0, kLocalErrorShare * bound_mm});
+                         {bound_mm, 0, kLocalErrorShare * bound_mm, true});
   }
   return result;
 }

@@ -5,8 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <random>
+#include <set>
 #include <stdexcept>
 
 #include "core/mesh_checks.h"
@@ -113,9 +116,18 @@ TEST(BoundedReduction, WithinABoundCollapsesTheMergeLocallyLimited) {
     EXPECT_GT(r.collapse.passed_over_local_error, 0u);
     EXPECT_EQ(r.mesh.triangles.size(), merged.triangles.size() - 2 * r.collapse.collapses);
     expect_sound_within(volume, r.mesh, bound);
+    // Within a bound the collapses move kept vertices (placement), in index space as the merge
+    // writes; to a count they move none.
+    const std::set<std::array<float, 3>> input(merged.positions.begin(), merged.positions.end());
+    auto moved = [&](const TriangleMesh& mesh) {
+      return std::count_if(mesh.positions.begin(), mesh.positions.end(),
+                           [&](const auto& p) { return input.count(p) == 0; });
+    };
+    EXPECT_GT(moved(r.mesh), 0);
     TriangleMesh exhausted = merged;
     const CollapseStats all = collapse_to_count(volume, 0.0f, one_thread(), exhausted, 0, bound);
     EXPECT_LT(r.collapse.collapses, all.collapses);
+    EXPECT_EQ(moved(exhausted), 0);
   }
   EXPECT_THROW(extract_type_merged_within(volume, 0.0f, one_thread(), {}, 0.0),
                std::invalid_argument);
