@@ -188,6 +188,29 @@ TEST(Reduction, RealCtCountsBelowWhatMergingReachesAreMet) {
                         "abdomen_skin", 0.1);
 }
 
+// --max-memory's estimate (app/memory_budget.h) covers the collapses: at a small bound, where
+// the merged surface they start from is largest, the conversion succeeds with its address
+// space limited to the estimate (the optimised build: the limit is not applied under
+// AddressSanitizer, and the collapses take minutes there).
+TEST(Reduction, TheMemoryEstimateCoversTheCollapses) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  if (!typemerge::test::optimised_build()) GTEST_SKIP() << "the optimised build measures this";
+  const std::string series = (data / "ct" / "abdomen").string();
+  const fs::path dir = fresh_dir("reduction_memory");
+  const std::string options = " --preset bone --max-error 0.5 --threads 2 -o " +
+                              (dir / "bone.stl").string();
+  const CommandRun refused = run("convert " + series + options + " --max-memory 1M");
+  ASSERT_EQ(refused.exit_code, 1) << refused.out;
+  const std::string says = "would need about ";
+  const std::size_t at = refused.out.find(says);
+  ASSERT_NE(at, std::string::npos) << refused.out;
+  const long estimate_mib = std::stol(refused.out.substr(at + says.size()));
+  const CommandRun limited =
+      run("convert " + series + options + " --max-memory " + std::to_string(estimate_mib + 1) + "M");
+  EXPECT_EQ(limited.exit_code, 0) << limited.out;
+  EXPECT_TRUE(fs::exists(dir / "bone.stl"));
+}
+
 TEST(Reduction, EveryPresetSurfaceGetsTheCount) {
   const fs::path dir = fresh_dir("reduction_presets");
   const CommandRun r = run("convert " + body_series().string() +
