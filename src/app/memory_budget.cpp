@@ -17,7 +17,8 @@ std::uint64_t conversion_memory_estimate(std::uint64_t voxels, const ConversionS
   const double per_voxel = volume_bytes + 2.0 * surfaces + 5.0 * windows +
                            surfaces * ((shape.reduces ? 4.0 : 0.0) + (shape.hollows ? 10.0 : 0.0));
   const double fixed_mib = 192.0 + 128.0 * (surfaces - 1.0) + 192.0 * windows +
-                           surfaces * ((shape.reduces ? 192.0 : 0.0) + (shape.hollows ? 192.0 : 0.0));
+                           surfaces * ((shape.reduces ? 192.0 : 0.0) +
+                                       (shape.hollows ? 192.0 : 0.0));
   const double bytes = 1.1 * (static_cast<double>(voxels) * per_voxel + fixed_mib * (1 << 20));
   // Saturates instead of wrapping: an absurd grid is then simply over any budget.
   return bytes < 1.8e19 ? static_cast<std::uint64_t>(bytes) : std::uint64_t{1} << 63;

@@ -24,18 +24,18 @@ struct ConversionShape {
   bool int16_samples = false;
 };
 
-// Address space a conversion of `voxels` voxels needs, an upper bound that --max-memory is
-// checked against before loading (and that batch schedules by): 1.1 × (bytes a voxel × voxels +
-// fixed MiB), with 4 bytes a voxel for the volume (2 for int16 samples), 2 more per surface and 5 more per window
-// (its field and larger surface), per surface 4 more with --reduce-to and 10 with --hollow;
-// fixed: 192 MiB of the process's own mappings (libraries, thread stacks, malloc arenas), 128
-// per extra surface thread, 192 per window, per surface 192 with --reduce-to or --max-error
-// (the collapses' reference surface, grids and queue grow with the surface, not the grid) and
-// 192 with --hollow. The constants are fitted to the smallest address-space limit (ulimit -v)
-// under which `convert --threads 2` succeeded, on CT series of 78.6 M and 35.1 M voxels for
-// each of those options, and cover every case measured (the fit: docs/benchmarks.md, "Moved
-// from headers and the README" and "2026-12-06"). Surfaces far larger than a CT tissue's (noise meshed at its mean)
-// can exceed it: then the address-space limit fails the conversion cleanly ("out of memory").
+// Address space a conversion of `voxels` voxels needs, an upper bound that --max-memory is checked
+// against before loading (and that batch schedules by): 1.1 × (bytes a voxel × voxels + fixed MiB),
+// with 4 bytes a voxel for the volume (2 for int16 samples), 2 more per surface and 5 more per
+// window (its field and larger surface), per surface 4 more with --reduce-to and 10 with --hollow;
+// fixed: 192 MiB of the process's own mappings (libraries, thread stacks, malloc arenas), 128 per
+// extra surface thread, 192 per window, per surface 192 with --reduce-to or --max-error (the
+// collapses' reference surface, grids and queue grow with the surface, not the grid) and 192 with
+// --hollow. The constants are fitted to the smallest address-space limit (ulimit -v) under which
+// `convert --threads 2` succeeded, on CT series of 78.6 M and 35.1 M voxels for each of those
+// options, and cover every case measured (the fit: docs/benchmarks.md, "Moved from headers and the
+// README" and "2026-12-06"). Surfaces far larger than a CT tissue's (noise meshed at its mean) can
+// exceed it: then the address-space limit fails the conversion cleanly ("out of memory").
 std::uint64_t conversion_memory_estimate(std::uint64_t voxels, const ConversionShape& shape = {});
 
 // The voxels to pass to conversion_memory_estimate for a grid of `size` voxels spaced

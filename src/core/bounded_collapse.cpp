@@ -319,7 +319,8 @@ class Collapser {
       const auto& a = geometry_->axes;
       const double det = geometry_->determinant();
       auto cross = [](const Vec3& x, const Vec3& y) {
-        return Point3{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]};
+        return Point3{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2],
+                      x[0] * y[1] - x[1] * y[0]};
       };
       inverse_ = {cross(a[1], a[2]), cross(a[2], a[0]), cross(a[0], a[1])};
       for (auto& row : inverse_) {
@@ -779,7 +780,8 @@ class Collapser {
     sum += quadric_[to];
     const auto& a = sum.q;
     auto times = [&](const Point3& x) {  // A x
-      return Point3{a[0] * x[0] + a[1] * x[1] + a[2] * x[2], a[1] * x[0] + a[3] * x[1] + a[4] * x[2],
+      return Point3{a[0] * x[0] + a[1] * x[1] + a[2] * x[2],
+                    a[1] * x[0] + a[3] * x[1] + a[4] * x[2],
                     a[2] * x[0] + a[4] * x[1] + a[5] * x[2]};
     };
     const Point3& pv = pos_[to];

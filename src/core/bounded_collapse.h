@@ -45,8 +45,8 @@
 //
 // Order: the Garland–Heckbert quadric cost of moving u onto v (the planes of the input's
 // triangles around both, area-weighted; at v's placed position with placement), smallest
-// first; a candidate u → w refused now is
-// tried again after a collapse onto a neighbour of u (which changes u's triangles). With
+// first; a candidate u → w refused now is tried again after a collapse onto a neighbour of u
+// (which changes u's triangles). With
 // local_rms, a candidate whose cost over its planes' summed area exceeds local_rms² (the
 // area-weighted root-mean-square distance from v to those planes above local_rms) is passed
 // over, and tried again only once a collapse onto u or v changes its cost: the collapses then
@@ -88,14 +88,16 @@ struct CollapseStats {
   std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first
 };
 
-// Collapses `surface` in place (triangles only: positions are kept, unused ones stay unused;
-// remove_unreferenced_vertices afterwards) until `options.target` or until no allowed collapse is left.
+// Collapses `surface` in place (its triangles, and with placement the positions of the
+// vertices moved; unused vertices stay: remove_unreferenced_vertices afterwards) until
+// `options.target` or until no allowed collapse is left.
 // Preconditions, the caller's: `surface` is an oriented 2-manifold without crossing
 // triangles, in the same units and frame as `reference`, and every point of each is within
 // options.bound of the other. Where it is open (edges in one triangle: a surface left open at
-// the volume's border), the vertices of those edges are never collapsed away, so its border
-// stays as it is. Throws std::invalid_argument for a bound not finite and > 0 or
-// a local_rms not finite and >= 0.
+// the volume's border), the vertices of those edges are never collapsed away nor moved, so
+// its border stays as it is. Throws std::invalid_argument for a bound not finite and > 0, a
+// local_rms not finite and >= 0, or placement with a geometry but no frame of one position a
+// vertex.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options);
 

@@ -14,15 +14,15 @@
 // target). The count is not strictly monotone in the bound (a larger disk can replace smaller
 // ones and need a fallback), so the bracket is kept by the tries' counts, not assumed.
 //
-// If even the cap's merge leaves more than `target`, merging alone cannot reach it: the
-// second stage, bounded collapses (bounded_collapse.h; without placement, which at a count
-// lowers the mean distance by about a tenth for about a quarter more time, so that the count
-// stays faster than quadric decimation: docs/benchmarks.md) of the merged surface against
-// marching cubes' own, within the same bound, run until the target: first at half the cap (the merge
-// and the collapses both within it), then, if that stops short, at the cap. A larger merge
-// leaves the collapses fewer, better-shaped triangles, so each bound reaches fewer triangles
-// this way than by collapses from a finer merge (docs/benchmarks.md). Where even the cap stops
-// short, the surface is as far as the cap allowed, with target_met false.
+// If even the cap's merge leaves more than `target`, merging alone cannot reach it: the second
+// stage, bounded collapses (bounded_collapse.h; without placement, which at a count lowers the mean
+// distance by about a tenth for about a quarter more time, so that the count stays faster than
+// quadric decimation: docs/benchmarks.md) of the merged surface against marching cubes' own, within
+// the same bound, run until the target: first at half the cap (the merge and the collapses both
+// within it), then, if that stops short, at the cap. A larger merge leaves the collapses fewer,
+// better-shaped triangles, so each bound reaches fewer triangles this way than by collapses from a
+// finer merge (docs/benchmarks.md). Where even the cap stops short, the surface is as far as the
+// cap allowed, with target_met false.
 #pragma once
 
 #include <cstddef>
@@ -58,15 +58,14 @@ struct ReductionResult {
 CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
                                 TriangleMesh& merged, std::size_t target, double bound_mm);
 
-// Type merging within bound_mm, then bounded collapses of its surface within the same bound
-// (the second stage above, without a count, with placement: the kept vertex moves to its
-// quadric's point, CollapseOptions::move_vertices) as long as each one's local quadric
-// estimate stays within kLocalErrorShare × bound_mm (CollapseOptions::local_rms): the fewer
-// triangles the bound allows at a mean distance near the merge's. Collapsing on until the bound alone
-// stops it takes many times longer and leaves several times the mean distance
-// (docs/benchmarks.md). Every guarantee of the header above holds; target_met is true.
-// `options` gives everything but epsilon_mm. Throws std::invalid_argument for a bound not
-// finite and > 0.
+// Type merging within bound_mm, then bounded collapses of its surface within the same bound (the
+// second stage above, without a count, with placement: the kept vertex moves to its quadric's
+// point, CollapseOptions::move_vertices) as long as each one's local quadric estimate stays within
+// kLocalErrorShare × bound_mm (CollapseOptions::local_rms): the fewer triangles the bound allows at
+// a mean distance near the merge's. Collapsing on until the bound alone stops it takes many times
+// longer and leaves several times the mean distance (docs/benchmarks.md). Every guarantee of the
+// header above holds; target_met is true. `options` gives everything but epsilon_mm. Throws
+// std::invalid_argument for a bound not finite and > 0.
 ReductionResult extract_type_merged_within(const Volume& volume, float iso,
                                            const ExtractOptions& extract,
                                            const MergeOptions& options, double bound_mm);

@@ -205,8 +205,8 @@ TEST(Reduction, TheMemoryEstimateCoversTheCollapses) {
   const std::size_t at = refused.out.find(says);
   ASSERT_NE(at, std::string::npos) << refused.out;
   const long estimate_mib = std::stol(refused.out.substr(at + says.size()));
-  const CommandRun limited =
-      run("convert " + series + options + " --max-memory " + std::to_string(estimate_mib + 1) + "M");
+  const std::string budget = " --max-memory " + std::to_string(estimate_mib + 1) + "M";
+  const CommandRun limited = run("convert " + series + options + budget);
   EXPECT_EQ(limited.exit_code, 0) << limited.out;
   EXPECT_TRUE(fs::exists(dir / "bone.stl"));
 }

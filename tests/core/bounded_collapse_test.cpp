@@ -247,7 +247,8 @@ TEST(BoundedCollapse, PlacementMovesVerticesKeepingEveryGuarantee) {
     EXPECT_GT(off_input, 0);
     EXPECT_EQ(moved.triangles.size(), kept.triangles.size());
     expect_guarantees(mc, patient, moved, 1.5, true);
-    EXPECT_LT(surface_distance(mc, moved, 0.1, 1).mean(), surface_distance(mc, kept, 0.1, 1).mean());
+    EXPECT_LT(surface_distance(mc, moved, 0.1, 1).mean(),
+              surface_distance(mc, kept, 0.1, 1).mean());
   }
   const Volume volume = blobs(3);
   Surfaces s = surfaces_of(volume, 0.0f, 1.0);
