@@ -315,14 +315,9 @@ class Collapser {
         ref_grid_(reference),
         grid_(make_grid(surface)) {
     if (geometry_ != nullptr) {
-      // The inverse of the index → patient map's linear part (columns: the axes), by cofactors.
-      const auto& a = geometry_->axes;
+      // The inverse of the index → patient map's linear part.
       const double det = geometry_->determinant();
-      auto cross = [](const Vec3& x, const Vec3& y) {
-        return Point3{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2],
-                      x[0] * y[1] - x[1] * y[0]};
-      };
-      inverse_ = {cross(a[1], a[2]), cross(a[2], a[0]), cross(a[0], a[1])};
+      inverse_ = geometry_->cofactor_rows();
       for (auto& row : inverse_) {
         for (double& x : row) x /= det;
       }
@@ -368,12 +363,13 @@ class Collapser {
     for (std::uint32_t v = 0; v < faces_of_.size(); ++v) {
       for (std::uint32_t f : faces_of_[v]) {
         for (std::uint32_t w : s_.triangles[f]) {
+          if (w == v) continue;
           const auto on_vw = std::count_if(
               faces_of_[v].begin(), faces_of_[v].end(), [&](std::uint32_t g) {
                 const Triangle& t = s_.triangles[g];
                 return t[0] == w || t[1] == w || t[2] == w;
               });
-          if (w != v && on_vw == 1) held_[v] = held_[w] = 1;
+          if (on_vw == 1) held_[v] = held_[w] = 1;
         }
       }
     }

@@ -13,7 +13,6 @@ namespace typemerge::core {
 void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry) {
   const double det = geometry.determinant();
   assert(det != 0.0);
-  const auto& a = geometry.axes;
 
   for (auto& p : mesh.positions) {
     const Vec3 q = geometry.apply(p[0], p[1], p[2]);
@@ -21,13 +20,9 @@ void to_patient(TriangleMesh& mesh, const IndexToPatient& geometry) {
   }
 
   // The linear part M has the axes as columns (patient = origin + M·index). A gradient
-  // transforms with M^{-T}; its rows are the cofactor vectors axes[1]×axes[2], axes[2]×axes[0],
-  // axes[0]×axes[1], each divided by det. The common factor 1/det only scales, but its sign
-  // matters, so keep it.
-  auto cross = [](const Vec3& u, const Vec3& v) {
-    return Vec3{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-  };
-  const std::array<Vec3, 3> cof = {cross(a[1], a[2]), cross(a[2], a[0]), cross(a[0], a[1])};
+  // transforms with M^{-T}; its rows are the cofactor vectors, each divided by det. The common
+  // factor 1/det only scales, but its sign matters, so keep it.
+  const std::array<Vec3, 3> cof = geometry.cofactor_rows();
   for (auto& n : mesh.normals) {
     Vec3 m{0, 0, 0};
     for (int c = 0; c < 3; ++c) {

@@ -20,6 +20,13 @@ double IndexToPatient::determinant() const {
          a[2] * (b[0] * c[1] - b[1] * c[0]);
 }
 
+std::array<Vec3, 3> IndexToPatient::cofactor_rows() const {
+  auto cross = [](const Vec3& u, const Vec3& v) {
+    return Vec3{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+  };
+  return {cross(axes[1], axes[2]), cross(axes[2], axes[0]), cross(axes[0], axes[1])};
+}
+
 double IndexToPatient::spacing(int axis) const {
   const Vec3& a = axes[axis];
   return std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);

@@ -32,6 +32,9 @@ struct IndexToPatient {
   // Determinant of [axes]: negative means the index frame is left-handed in LPS, so a
   // surface extracted in index space has to flip its winding to stay outward.
   double determinant() const;
+  // The cofactor vectors axes[1]×axes[2], axes[2]×axes[0], axes[0]×axes[1]: the rows of
+  // determinant() × the inverse of the linear part (the matrix with the axes as columns).
+  std::array<Vec3, 3> cofactor_rows() const;
   double spacing(int axis) const;  // length of axes[axis]
 };
 
