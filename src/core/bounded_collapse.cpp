@@ -29,6 +29,9 @@ using Triangle = std::array<std::uint32_t, 3>;
 // levels cut a triangle's circumradius 8-fold (a fourth doubled the tests for few more
 // collapses; docs/benchmarks.md).
 constexpr int kLipschitzDepth = 3;
+// The overlay proof's slab: the reference within this many ε of a new triangle's plane is
+// what it projects onto the triangle.
+constexpr double kOverlaySlab = 1.25;
 // Halvings of a new triangle the corner test may make (one search each) before the centroid
 // test takes over.
 constexpr int kBisectDepth = 2;
@@ -47,6 +50,61 @@ Point3 sub(const Point3& a, const Point3& b) { return {a[0] - b[0], a[1] - b[1],
 double dot(const Point3& a, const Point3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 Point3 mid(const Point3& a, const Point3& b) {
   return {0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])};
+}
+Point3 cross(const Point3& a, const Point3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+// A point in a triangle's frame: x, y in its plane, h along its unit normal.
+struct LocalPoint {
+  double x;
+  double y;
+  double h;
+};
+
+// A convex polygon of the overlay proof (a reference triangle cut by at most five planes has
+// at most eight corners; rounding may add a few, `overflow` when it would add too many). Only
+// the first n corners are read.
+struct LocalPolygon {
+  std::array<LocalPoint, 16> p;
+  int n = 0;
+  bool overflow = false;
+};
+
+// Into `out`, the part of `in` where side(point) >= 0 (side affine), in the same orientation.
+template <typename Side>
+void clip(const LocalPolygon& in, LocalPolygon& out, const Side& side) {
+  out.n = 0;
+  out.overflow = in.overflow;
+  if (in.n == 0) return;
+  const LocalPoint* a = &in.p[in.n - 1];
+  double sa = side(*a);
+  for (int i = 0; i < in.n; ++i) {
+    const LocalPoint& b = in.p[i];
+    const double sb = side(b);
+    if (out.n + 2 > static_cast<int>(out.p.size())) {
+      out.overflow = true;
+      return;
+    }
+    if ((sa >= 0.0) != (sb >= 0.0)) {
+      const double t = sa / (sa - sb);
+      out.p[out.n++] = {a->x + t * (b.x - a->x), a->y + t * (b.y - a->y), a->h + t * (b.h - a->h)};
+    }
+    if (sb >= 0.0) out.p[out.n++] = b;
+    a = &b;
+    sa = sb;
+  }
+}
+
+// Twice the signed area of the polygon's projection on its plane (x, y).
+double twice_signed_area(const LocalPolygon& poly) {
+  double sum = 0.0;
+  for (int i = 0; i < poly.n; ++i) {
+    const LocalPoint& a = poly.p[i];
+    const LocalPoint& b = poly.p[(i + 1) % poly.n];
+    sum += a.x * b.y - a.y * b.x;
+  }
+  return sum;
 }
 
 // A symmetric 4×4 quadric of planes: x^T A x + 2 b·x + c.
@@ -354,6 +412,8 @@ class Collapser {
       grid_.insert(f, box_of(t));
     }
     hold_border();
+    // The overlay proof needs a closed reference; an open surface's border is the reference's.
+    overlay_ = std::find(held_.begin(), held_.end(), 1) == held_.end();
   }
 
   // The ends of every edge in one triangle only (a surface left open where it meets the
@@ -698,6 +758,154 @@ class Collapser {
     return left == Proof::yes && right == Proof::yes ? Proof::yes : Proof::unknown;
   }
 
+  // Every point of triangle abc within ε of the reference, by the reference beneath it (the
+  // overlay proof). Let S be the slab of points within H = kOverlaySlab × ε of abc's plane and
+  // π the projection onto that plane. Each reference triangle R meeting S over abc is cut to
+  // S and its projection to abc: a convex piece P_R of abc. Over a convex piece the distance
+  // to R is convex, so its largest value is at one of P_R's corners: max over them ≤ ε proves
+  // every point of P_R within ε of R. The pieces cover abc when the reference is a closed
+  // surface M (a 2-cycle) and M meets neither face of S over abc: then the degree of π on
+  // M ∩ S (preimages counted +1 where a triangle projects in abc's orientation, −1 where it
+  // projects reversed) is one integer D over all of abc, D × area(abc) = Σ signed area(P_R),
+  // and where D ≥ 1 every point of abc lies in some P_R of a triangle projected in abc's
+  // orientation. So: no reference crossing a face of S over abc (tested on a band a hair
+  // thicker than the face, over abc grown a hair), every piece of a triangle projected in
+  // abc's orientation within ε at its corners, and the signed areas summing to at least half
+  // abc's area. Refuses (false) otherwise; the other proofs may still succeed. Only for a
+  // closed reference (overlay_).
+  bool overlay_proves(const Point3& a, const Point3& b, const Point3& c) {
+    const Point3 ab = sub(b, a);
+    const Point3 ac = sub(c, a);
+    Point3 n = cross(ab, ac);
+    const double twice_area = std::sqrt(dot(n, n));
+    const double lab = std::sqrt(dot(ab, ab));
+    if (!(twice_area > 0.0) || !(lab > 0.0)) return false;
+    for (double& x : n) x /= twice_area;
+    const Point3 e1 = {ab[0] / lab, ab[1] / lab, ab[2] / lab};
+    const Point3 e2 = cross(n, e1);
+    auto local = [&](const Point3& p) {
+      const Point3 d = sub(p, a);
+      return LocalPoint{dot(d, e1), dot(d, e2), dot(d, n)};
+    };
+    const LocalPoint tc = local(c);
+    // abc's sides as lines: (x, y) lies inside side k when edge[k] · (x, y, 1) >= 0 (unit
+    // normals, so the value is the distance; corners counter-clockwise in x, y).
+    std::array<std::array<double, 3>, 3> edge{};
+    {
+      const std::array<std::array<double, 2>, 3> t = {{{0.0, 0.0}, {lab, 0.0}, {tc.x, tc.y}}};
+      for (int k = 0; k < 3; ++k) {
+        const auto& p = t[k];
+        const auto& q = t[(k + 1) % 3];
+        const double len = std::sqrt((q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]));
+        if (!(len > 0.0)) return false;
+        edge[k] = {-(q[1] - p[1]) / len, (q[0] - p[0]) / len, 0.0};
+        edge[k][2] = -(edge[k][0] * p[0] + edge[k][1] * p[1]);
+      }
+    }
+    const double slab = kOverlaySlab * eps_;
+    const double hair = 1e-6 * eps_;  // far above the coordinates' rounding
+    // The part of `poly` (overwritten) inside abc grown by `grow`, into `out`.
+    auto in_triangle = [&](LocalPolygon& poly, LocalPolygon& out, double grow) {
+      clip(poly, out, [&](const LocalPoint& x) {
+        return edge[0][0] * x.x + edge[0][1] * x.y + edge[0][2] + grow;
+      });
+      clip(out, poly, [&](const LocalPoint& x) {
+        return edge[1][0] * x.x + edge[1][1] * x.y + edge[1][2] + grow;
+      });
+      clip(poly, out, [&](const LocalPoint& x) {
+        return edge[2][0] * x.x + edge[2][1] * x.y + edge[2][2] + grow;
+      });
+    };
+    LocalPolygon poly{};  // zeroed once a proof, not once a reference triangle
+    LocalPolygon work{};
+    LocalPolygon piece{};
+    const double lo_x = std::min({0.0, lab, tc.x});
+    const double hi_x = std::max({0.0, lab, tc.x});
+    const double lo_y = 0.0;
+    const double hi_y = tc.y;
+    Point3 lo = a;
+    Point3 hi = a;
+    for (const Point3* p : {&a, &b, &c}) {
+      for (double side : {-slab - hair, slab + hair}) {
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = std::min(lo[k], (*p)[k] + side * n[k]);
+          hi[k] = std::max(hi[k], (*p)[k] + side * n[k]);
+        }
+      }
+    }
+    double signed_twice_areas = 0.0;
+    bool proved = true;
+    ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(), [&](std::uint32_t r) {
+      if (!proved) return;
+      const Triangle& rt = ref_.triangles[r];
+      const std::array<Point3, 3> rp = {as_point3(ref_.positions[rt[0]]),
+                                        as_point3(ref_.positions[rt[1]]),
+                                        as_point3(ref_.positions[rt[2]])};
+      poly.n = 3;
+      poly.overflow = false;
+      for (int k = 0; k < 3; ++k) poly.p[k] = local(rp[k]);
+      const LocalPoint& p0 = poly.p[0];
+      const LocalPoint& p1 = poly.p[1];
+      const LocalPoint& p2 = poly.p[2];
+      const double h_lo = std::min({p0.h, p1.h, p2.h});
+      const double h_hi = std::max({p0.h, p1.h, p2.h});
+      if (h_lo > slab + hair || h_hi < -slab - hair) return;
+      if (std::max({p0.x, p1.x, p2.x}) < lo_x - hair || std::min({p0.x, p1.x, p2.x}) > hi_x + hair ||
+          std::max({p0.y, p1.y, p2.y}) < lo_y - hair || std::min({p0.y, p1.y, p2.y}) > hi_y + hair) {
+        return;
+      }
+      const double orientation = (p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x);
+      // Every corner of the piece is a point (x, y) of abc's plane with (x, y, h) on the
+      // reference triangle (clipping interpolates along it), so its distance to that triangle
+      // is at most |h|, searched exactly only beyond ε.
+      auto within = [&](const LocalPolygon& part) {
+        for (int k = 0; k < part.n; ++k) {
+          const LocalPoint& x = part.p[k];
+          if (std::abs(x.h) <= eps_) continue;
+          const Point3 q = {a[0] + x.x * e1[0] + x.y * e2[0], a[1] + x.x * e1[1] + x.y * e2[1],
+                            a[2] + x.x * e1[2] + x.y * e2[2]};
+          if (detail::point_triangle_distance_squared(q, rp[0], rp[1], rp[2]) > eps2_) {
+            return false;
+          }
+        }
+        return true;
+      };
+      // The common case: the reference triangle inside abc's prism and the slab, uncut.
+      bool inside = h_lo > -slab + hair && h_hi < slab - hair;
+      for (int k = 0; k < 3 && inside; ++k) {
+        for (const LocalPoint& x : {p0, p1, p2}) {
+          if (edge[k][0] * x.x + edge[k][1] * x.y + edge[k][2] < hair) inside = false;
+        }
+      }
+      if (inside) {
+        signed_twice_areas += orientation;
+        if (orientation > 0.0 && !within(poly)) proved = false;
+        return;
+      }
+      for (double face : {slab, -slab}) {
+        if (h_lo > face + hair || h_hi < face - hair) continue;
+        clip(poly, work, [&](const LocalPoint& x) { return face + hair - x.h; });
+        clip(work, piece, [&](const LocalPoint& x) { return x.h - (face - hair); });
+        in_triangle(piece, work, hair);
+        if (work.n > 0 || work.overflow) {
+          proved = false;  // the reference crosses a face of the slab over abc
+          return;
+        }
+      }
+      clip(poly, work, [&](const LocalPoint& x) { return slab - x.h; });
+      clip(work, piece, [&](const LocalPoint& x) { return x.h + slab; });
+      in_triangle(piece, work, 0.0);  // the piece, in work
+      if (work.overflow) {
+        proved = false;
+        return;
+      }
+      if (work.n < 3) return;
+      signed_twice_areas += twice_signed_area(work);
+      if (orientation > 0.0 && !within(work)) proved = false;
+    });
+    return proved && signed_twice_areas >= 0.5 * twice_area;
+  }
+
   // Every point of surface triangle t within ε of the reference: first without a search, from
   // its corners' distances (1-Lipschitz: a point p of t is within d(w) + |p − w| of the
   // reference for each corner w, and within cover_radius of its nearest corner), else by
@@ -711,6 +919,10 @@ class Collapser {
     if (!std::isfinite(std::max({d[0], d[1], d[2]}))) return false;  // a corner ε or more away
     const Proof proof = corners_prove(a, b, c, d, 0);
     if (proof != Proof::unknown) return proof == Proof::yes;
+    if (overlay_ && overlay_proves(a, b, c)) {
+      ++stats_.overlay_proofs;
+      return true;
+    }
     return near_reference(a, b, c, 0);
   }
 
@@ -1091,6 +1303,7 @@ class Collapser {
   std::vector<std::uint32_t> ref_stamp_;
   std::vector<double> vertex_distance_;  // < 0: not searched yet
   std::uint32_t query_ = 0;
+  bool overlay_ = false;     // the overlay proof applies (a closed reference)
   double local_rms2_ = 0.0;  // run()'s local_rms squared; 0: no local limit
   std::size_t live_ = 0;
   std::size_t grid_live_ = 0;  // live triangles when grid_ was made

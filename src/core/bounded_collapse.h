@@ -32,7 +32,15 @@
 //    halves tried the same way, down to kBisectDepth levels; else dist(c, R) + max |p_i − c|
 //    ≤ ε at its centroid c proves it, T split in four where it does not and each part tried
 //    by the centroid test, down to kLipschitzDepth levels. A searched point ε or more away
-//    refuses the collapse at once, as does failing every test;
+//    refuses the collapse at once, as does failing every test. Before the centroid test, on a
+//    closed reference, the overlay proof (exact where it applies, so it proves triangles far
+//    larger than ε): the reference triangles within a slab of kOverlaySlab × ε around T's
+//    plane, cut to it and projected onto T, cut T into convex pieces; the distance to one
+//    triangle is convex, so a piece's corners within ε of its triangle prove the piece. The
+//    pieces cover T when the reference crosses neither face of the slab over T and the
+//    pieces' signed areas (negative where the reference projects reversed) sum to at least
+//    half T's: the projection's degree is then one integer over T, at least 1 (argued at
+//    overlay_proves);
 //  - reference → surface within ε: every reference triangle is assigned one triangle of the
 //    surface that is within ε of its three corners, hence of all of it (the distance to one
 //    triangle is a convex function); where none is, its four parts of a midpoint split are
@@ -83,6 +91,7 @@ struct CollapseStats {
   std::size_t refused_topology = 0;
   std::size_t refused_shape = 0;
   std::size_t refused_distance = 0;  // either direction
+  std::size_t overlay_proofs = 0;    // new triangles proved within ε by the overlay proof
   std::size_t refused_crossing = 0;
   std::size_t passed_over_local_error = 0;  // candidates beyond local_rms, never queued
   std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first
@@ -95,7 +104,9 @@ struct CollapseStats {
 // triangles, in the same units and frame as `reference`, and every point of each is within
 // options.bound of the other. Where it is open (edges in one triangle: a surface left open at
 // the volume's border), the vertices of those edges are never collapsed away nor moved, so
-// its border stays as it is. Throws std::invalid_argument for a bound not finite and > 0, a
+// its border stays as it is; the reference must be closed wherever the surface is (as marching
+// cubes' and type merging's surfaces of one volume and options are): the overlay proof runs
+// only when the surface has no border and counts on the reference having none. Throws std::invalid_argument for a bound not finite and > 0, a
 // local_rms not finite and >= 0, or placement with a geometry but no frame of one position a
 // vertex.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,

@@ -110,6 +110,34 @@ class TriangleGrid {
     return search(p, stamp, query, best, &hint, 0.0);
   }
 
+  // Calls f(t) once for every triangle bucketed in a cell that meets the box [lo, hi]: every
+  // triangle that meets the box, and some near it (`stamp` and `query` as for the searches).
+  template <typename F>
+  void visit_box(const Point3& lo, const Point3& hi, std::vector<std::uint32_t>& stamp,
+                 std::uint32_t query, const F& f) const {
+    std::array<int, 3> c0{};
+    std::array<int, 3> c1{};
+    for (int a = 0; a < 3; ++a) {
+      if (hi[a] < lo_[a] || lo[a] > lo_[a] + dims_[a] * cell_) return;
+      const double last = dims_[a] - 1.0;  // clamped before the cast: a far box cannot overflow
+      c0[a] = static_cast<int>(std::clamp(std::floor((lo[a] - lo_[a]) / cell_), 0.0, last));
+      c1[a] = static_cast<int>(std::clamp(std::floor((hi[a] - lo_[a]) / cell_), 0.0, last));
+    }
+    for (int z = c0[2]; z <= c1[2]; ++z) {
+      for (int y = c0[1]; y <= c1[1]; ++y) {
+        for (int x = c0[0]; x <= c1[0]; ++x) {
+          const std::size_t cell = cell_index(x, y, z);
+          for (std::uint32_t i = start_[cell]; i < start_[cell + 1]; ++i) {
+            const std::uint32_t t = entries_[i];
+            if (stamp[t] == query) continue;
+            stamp[t] = query;
+            f(t);
+          }
+        }
+      }
+    }
+  }
+
  private:
   // The shell search from the cell of p, with `best` the squared distance to beat.
   double search(const Point3& p, std::vector<std::uint32_t>& stamp, std::uint32_t query,

@@ -191,6 +191,7 @@ TEST(BoundedCollapse, AnOpenSurfaceKeepsItsBorder) {
     const CollapseStats stats = collapse_within_bound(collapsed, mc, options);
     remove_unreferenced_vertices(collapsed);
     EXPECT_GT(stats.collapses, 0u);
+    EXPECT_EQ(stats.overlay_proofs, 0u);  // it needs a closed reference
     const MeshCheck after = check_mesh(collapsed);
     EXPECT_EQ(after.boundary_edges, before.boundary_edges);
     EXPECT_EQ(after.non_manifold_edges, 0u);
@@ -256,6 +257,34 @@ TEST(BoundedCollapse, PlacementMovesVerticesKeepingEveryGuarantee) {
   no_frame.move_vertices = true;
   no_frame.geometry = &volume.geometry();
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, no_frame), std::invalid_argument);
+}
+
+// A bound of a quarter of the finest voxel, far below the merged triangles' size: the corner
+// and centroid tests prove few new triangles there; the overlay proof (the reference beneath a
+// triangle, projected onto it) proves most, and the sampled distance stays within the bound.
+TEST(BoundedCollapse, TheOverlayProvesTrianglesFarLargerThanTheBound) {
+  for (unsigned seed : {3u, 7u}) {
+    SCOPED_TRACE(seed);
+    const Volume volume = blobs(seed);
+    TriangleMesh mc = extract_isosurface(volume, 0.0f, one_thread());
+    to_patient(mc, volume.geometry());
+    MergeOptions merge;
+    merge.epsilon_mm = 0.2;
+    const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), merge);
+    TriangleMesh patient = merged;
+    to_patient(patient, volume.geometry());
+    TriangleMesh frame = merged;
+    TriangleMesh collapsed = patient;
+    CollapseOptions options{0.2, 0};
+    options.move_vertices = true;
+    options.geometry = &volume.geometry();
+    options.frame = &frame.positions;
+    const CollapseStats stats = collapse_within_bound(collapsed, mc, options);
+    remove_unreferenced_vertices(collapsed);
+    EXPECT_GT(stats.overlay_proofs, stats.collapses);  // several new triangles a collapse
+    EXPECT_LE(3 * collapsed.triangles.size(), patient.triangles.size());
+    expect_guarantees(mc, patient, collapsed, 0.2, true);
+  }
 }
 
 TEST(BoundedCollapse, RejectsABadBound) {
