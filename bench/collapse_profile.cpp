@@ -112,10 +112,11 @@ int main(int argc, char** argv) {
         const core::SymmetricMeshDistance d = core::surface_distance(reference, work, 0.5, 1);
         std::printf("  target %zu (%s): %.1f ms (CPU %.1f ms), %zu triangles; %zu collapses; "
                     "refused %zu topology, %zu shape, %zu distance, %zu crossing; %zu held; "
-                    "%zu passed over; %zu overlay proofs; distance max %.3f mean %.4f mm\n",
+                    "%zu passed over; %zu + %zu overlay proofs; distance max %.3f mean %.4f mm\n",
                     n, share.c_str(), ms, cpu, work.triangles.size(), s.collapses, s.refused_topology,
                     s.refused_shape, s.refused_distance, s.refused_crossing,
                     s.held_reference_triangles, s.passed_over_local_error, s.overlay_proofs,
+                    s.reference_overlay_proofs,
                     d.hausdorff(), d.mean());
       }
     }

@@ -282,7 +282,12 @@ struct Patch {
   std::uint32_t reference;
   std::uint8_t depth;
   std::uint8_t path;
+  std::uint16_t epoch = 0;  // a union patch's proof (kUnion): current while it equals the
+                            // reference triangle's epoch
 };
+// A whole reference triangle proved within ε of several surface triangles together (the
+// overlay proof against the surface): listed with each of those whose pieces prove it.
+constexpr std::uint8_t kUnion = 0xFF;
 // Levels of splitting a reference triangle that no single surface triangle covers.
 constexpr int kPatchDepth = 3;
 
@@ -395,6 +400,8 @@ class Collapser {
     refs_of_.resize(nf);
     refused_from_.resize(nv);
     ref_stamp_.assign(ref_.triangles.size(), 0);
+    epoch_.assign(ref_.triangles.size(), 0);
+    redone_.assign(ref_.triangles.size(), 0);
     vertex_distance_.assign(nv, -1.0);
     live_ = nf;
     grid_live_ = nf;
@@ -414,6 +421,16 @@ class Collapser {
     hold_border();
     // The overlay proof needs a closed reference; an open surface's border is the reference's.
     overlay_ = std::find(held_.begin(), held_.end(), 1) == held_.end();
+    // Parts split kPatchDepth levels are an eighth of a reference triangle: where ε is smaller
+    // still, a part across an edge of the surface is seldom within ε of one triangle, so the
+    // overlay proof is tried before any split (it lists a triangle several times, so only then).
+    double edge = 0.0;
+    for (const Triangle& t : ref_.triangles) {
+      const Point3 d = sub(as_point3(ref_.positions[t[1]]), as_point3(ref_.positions[t[0]]));
+      edge += std::sqrt(dot(d, d));
+    }
+    edge /= static_cast<double>(std::max<std::size_t>(ref_.triangles.size(), 1));
+    union_first_ = overlay_ && eps_ * (1 << kPatchDepth) < edge;
   }
 
   // The ends of every edge in one triangle only (a surface left open where it meets the
@@ -579,7 +596,8 @@ class Collapser {
   }
 
   // Each reference triangle to one surface triangle covering it, else its parts (split up to
-  // kPatchDepth levels) each to one; a part none covers is held: the vertices of every surface
+  // kPatchDepth levels) each to one; where a part none covers, the whole triangle by the
+  // overlay proof (union_covers), else that part is held: the vertices of every surface
   // triangle near it are held (no collapse may change those triangles, so the distance from
   // it to the surface cannot grow).
   void assign_reference() {
@@ -588,10 +606,13 @@ class Collapser {
     std::uint32_t query = 0;
     constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
     std::vector<Patch> todo;
+    std::vector<std::pair<std::uint32_t, Patch>> listed;  // r's parts, to their triangles
+    std::vector<Patch> uncovered;                          // r's parts none covers
     std::uint32_t last = kNone;
     for (std::uint32_t r = 0; r < ref_.triangles.size(); ++r) {
       todo.push_back({r, 0, 0});
-      bool held = false;
+      listed.clear();
+      uncovered.clear();
       while (!todo.empty()) {
         const Patch patch = todo.back();
         todo.pop_back();
@@ -600,7 +621,7 @@ class Collapser {
                           (c[0][2] + c[1][2] + c[2][2]) / 3.0};
         // Consecutive reference triangles are neighbours, often covered by the same triangle.
         if (last != kNone && covers(last, c)) {
-          refs_of_[last].push_back(patch);
+          listed.push_back({last, patch});
           continue;
         }
         std::uint32_t found = kNone;
@@ -612,24 +633,86 @@ class Collapser {
           });
         }
         if (found != kNone) {
-          refs_of_[found].push_back(patch);
+          listed.push_back({found, patch});
           last = found;
+        } else if (patch.depth == 0 && union_first_ && union_covers(r, epoch_[r])) {
+          listed.assign(reassigned_.begin(), reassigned_.end());
+          reassigned_.clear();
         } else if (patch.depth < kPatchDepth) {
           for (int k = 0; k < 4; ++k) todo.push_back(part(patch, k));
         } else {
-          held = true;
-          grid_.visit(box_of_points(c, eps_), [&](std::uint32_t f) {
-            for (auto v : s_.triangles[f]) held_[v] = 1;
-          });
+          uncovered.push_back(patch);
         }
       }
-      if (held) ++stats_.held_reference_triangles;
+      // A part none covers: the whole triangle by the overlay proof, else the part is held.
+      if (!uncovered.empty() && overlay_ && !union_first_ && union_covers(r, epoch_[r])) {
+        listed.assign(reassigned_.begin(), reassigned_.end());
+        reassigned_.clear();
+        uncovered.clear();
+      }
+      for (const auto& [to, patch] : listed) refs_of_[to].push_back(patch);
+      for (const Patch& patch : uncovered) {
+        grid_.visit(box_of_points(corners(patch), eps_), [&](std::uint32_t f) {
+          for (auto v : s_.triangles[f]) held_[v] = 1;
+        });
+      }
+      if (!uncovered.empty()) ++stats_.held_reference_triangles;
     }
+  }
+
+  // Reference triangle r within ε of the live surface as it is (its triangles changed by a
+  // collapse being tried included, as in s_.triangles; their grid boxes may be old, so they
+  // are listed from changed_), by the overlay proof: its registrations, with the epoch
+  // `epoch`, into reassigned_.
+  bool union_covers(std::uint32_t r, std::uint16_t epoch) {
+    const Triangle& rt = ref_.triangles[r];
+    const std::array<Point3, 3> c = {as_point3(ref_.positions[rt[0]]),
+                                     as_point3(ref_.positions[rt[1]]),
+                                     as_point3(ref_.positions[rt[2]])};
+    auto triangle = [&](std::uint32_t f) {
+      const Triangle& t = s_.triangles[f];
+      return std::array<Point3, 3>{pos_[t[0]], pos_[t[1]], pos_[t[2]]};
+    };
+    auto near_surface_triangles = [&](const Point3& lo, const Point3& hi, const auto& f) {
+      ++visit_stamp_;
+      for (std::uint32_t g : changed_) {
+        visited_[g] = visit_stamp_;
+        f(triangle(g), g);
+      }
+      grid_.visit(Box{lo, hi}, [&](std::uint32_t g) {
+        if (!alive_[g] || visited_[g] == visit_stamp_) return;
+        visited_[g] = visit_stamp_;
+        f(triangle(g), g);
+      });
+    };
+    const std::size_t mark = reassigned_.size();
+    const Patch patch{r, kUnion, 0, epoch};
+    const bool proved = overlay_proves(c[0], c[1], c[2], near_surface_triangles,
+                                       [&](std::uint32_t f) { reassigned_.push_back({f, patch}); });
+    if (!proved) reassigned_.resize(mark);
+    if (proved) ++stats_.reference_overlay_proofs;
+    return proved;
   }
 
   // Assigns `patch`, or its parts, to triangles of candidates_ (into reassigned_), `hint`
   // (the last triangle that covered one) tried first.
+  // Reference triangle r is proved again by the collapse being tried: once it is made, r's
+  // earlier union listings are old.
+  void renew(std::uint32_t r) {
+    if (redone_[r] == attempt_) return;
+    redone_[r] = attempt_;
+    renewed_.push_back(r);
+  }
+
+  // A union patch is proved again, once a collapse, as a whole reference triangle; the one
+  // listing of an old proof is passed over.
   bool reassign(const Patch& patch, std::uint32_t& hint) {
+    const std::uint32_t r = patch.reference;
+    if (patch.depth == kUnion) {
+      if (patch.epoch != epoch_[r] || redone_[r] == attempt_) return true;
+      renew(r);
+      return reassign(Patch{r, 0, 0}, hint);
+    }
     const std::array<Point3, 3> c = corners(patch);
     if (hint != kNoFace && covers(hint, c)) {
       reassigned_.push_back({hint, patch});
@@ -642,11 +725,20 @@ class Collapser {
         return true;
       }
     }
-    if (patch.depth == kPatchDepth) return false;
-    for (int k = 0; k < 4; ++k) {
-      if (!reassign(part(patch, k), hint)) return false;
+    if (patch.depth == 0 && union_first_) {
+      renew(r);
+      if (union_covers(r, static_cast<std::uint16_t>(epoch_[r] + 1))) return true;
     }
-    return true;
+    if (patch.depth == kPatchDepth) return false;
+    const std::size_t mark = reassigned_.size();
+    bool parts = true;
+    for (int k = 0; k < 4 && parts; ++k) parts = reassign(part(patch, k), hint);
+    if (parts || patch.depth != 0 || !overlay_ || union_first_) return parts;
+    // A whole triangle its parts cannot cover: the overlay proof, listed only where needed
+    // (a union listing takes several entries).
+    reassigned_.resize(mark);
+    renew(r);
+    return union_covers(r, static_cast<std::uint16_t>(epoch_[r] + 1));
   }
 
   static Point3 centroid(const Point3& a, const Point3& b, const Point3& c) {
@@ -758,22 +850,26 @@ class Collapser {
     return left == Proof::yes && right == Proof::yes ? Proof::yes : Proof::unknown;
   }
 
-  // Every point of triangle abc within ε of the reference, by the reference beneath it (the
-  // overlay proof). Let S be the slab of points within H = kOverlaySlab × ε of abc's plane and
-  // π the projection onto that plane. Each reference triangle R meeting S over abc is cut to
-  // S and its projection to abc: a convex piece P_R of abc. Over a convex piece the distance
-  // to R is convex, so its largest value is at one of P_R's corners: max over them ≤ ε proves
-  // every point of P_R within ε of R. The pieces cover abc when the reference is a closed
-  // surface M (a 2-cycle) and M meets neither face of S over abc: then the degree of π on
-  // M ∩ S (preimages counted +1 where a triangle projects in abc's orientation, −1 where it
-  // projects reversed) is one integer D over all of abc, D × area(abc) = Σ signed area(P_R),
-  // and where D ≥ 1 every point of abc lies in some P_R of a triangle projected in abc's
-  // orientation. So: no reference crossing a face of S over abc (tested on a band a hair
-  // thicker than the face, over abc grown a hair), every piece of a triangle projected in
-  // abc's orientation within ε at its corners, and the signed areas summing to at least half
-  // abc's area. Refuses (false) otherwise; the other proofs may still succeed. Only for a
-  // closed reference (overlay_).
-  bool overlay_proves(const Point3& a, const Point3& b, const Point3& c) {
+  // Every point of triangle abc within ε of a closed mesh M, by M beneath it (the overlay
+  // proof). `each_near(lo, hi, f)` calls f(corners, id) for every triangle of M meeting the
+  // box [lo, hi] (and perhaps some near it); `involved(id)` is called for each triangle whose
+  // piece (below) proves part of abc: abc stays proved while none of those changes. Let S be
+  // the slab of points within H = kOverlaySlab × ε of abc's plane and π the projection onto
+  // that plane. Each triangle R of M meeting S over abc is cut to S and its projection to
+  // abc: a convex piece P_R of abc. Over a convex piece the distance to R is convex, so its
+  // largest value is at one of P_R's corners: max over them ≤ ε proves every point of P_R
+  // within ε of R. The pieces cover abc when M is closed (a 2-cycle) and meets neither face
+  // of S over abc: then the degree of π on M ∩ S (preimages counted +1 where a triangle
+  // projects in abc's orientation, −1 where it projects reversed) is one integer D over all
+  // of abc, D × area(abc) = Σ signed area(P_R), and where D ≥ 1 every point of abc lies in
+  // some P_R of a triangle projected in abc's orientation. So: no triangle of M crossing a
+  // face of S over abc (tested on a band a hair thicker than the face, over abc grown a
+  // hair), every piece of a triangle projected in abc's orientation within ε at its corners,
+  // and the signed areas summing to at least half abc's area. False otherwise (the other
+  // proofs may still succeed). Only for closed meshes (overlay_).
+  template <typename Near, typename Involved>
+  bool overlay_proves(const Point3& a, const Point3& b, const Point3& c, const Near& each_near,
+                      const Involved& involved) {
     const Point3 ab = sub(b, a);
     const Point3 ac = sub(c, a);
     Point3 n = cross(ab, ac);
@@ -835,12 +931,8 @@ class Collapser {
     }
     double signed_twice_areas = 0.0;
     bool proved = true;
-    ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(), [&](std::uint32_t r) {
+    each_near(lo, hi, [&](const std::array<Point3, 3>& rp, std::uint32_t id) {
       if (!proved) return;
-      const Triangle& rt = ref_.triangles[r];
-      const std::array<Point3, 3> rp = {as_point3(ref_.positions[rt[0]]),
-                                        as_point3(ref_.positions[rt[1]]),
-                                        as_point3(ref_.positions[rt[2]])};
       poly.n = 3;
       poly.overflow = false;
       for (int k = 0; k < 3; ++k) poly.p[k] = local(rp[k]);
@@ -879,7 +971,10 @@ class Collapser {
       }
       if (inside) {
         signed_twice_areas += orientation;
-        if (orientation > 0.0 && !within(poly)) proved = false;
+        if (orientation > 0.0) {
+          if (!within(poly)) proved = false;
+          involved(id);
+        }
         return;
       }
       for (double face : {slab, -slab}) {
@@ -901,7 +996,10 @@ class Collapser {
       }
       if (work.n < 3) return;
       signed_twice_areas += twice_signed_area(work);
-      if (orientation > 0.0 && !within(work)) proved = false;
+      if (orientation > 0.0) {
+        if (!within(work)) proved = false;
+        involved(id);
+      }
     });
     return proved && signed_twice_areas >= 0.5 * twice_area;
   }
@@ -919,7 +1017,15 @@ class Collapser {
     if (!std::isfinite(std::max({d[0], d[1], d[2]}))) return false;  // a corner ε or more away
     const Proof proof = corners_prove(a, b, c, d, 0);
     if (proof != Proof::unknown) return proof == Proof::yes;
-    if (overlay_ && overlay_proves(a, b, c)) {
+    auto near_reference_triangles = [&](const Point3& lo, const Point3& hi, const auto& f) {
+      ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(), [&](std::uint32_t r) {
+        const Triangle& rt = ref_.triangles[r];
+        f(std::array<Point3, 3>{as_point3(ref_.positions[rt[0]]), as_point3(ref_.positions[rt[1]]),
+                                as_point3(ref_.positions[rt[2]])},
+          r);
+      });
+    };
+    if (overlay_ && overlay_proves(a, b, c, near_reference_triangles, [](std::uint32_t) {})) {
       ++stats_.overlay_proofs;
       return true;
     }
@@ -1230,6 +1336,11 @@ class Collapser {
       }
     }
     reassigned_.clear();
+    renewed_.clear();
+    if (++attempt_ == 0) {
+      std::fill(redone_.begin(), redone_.end(), 0);
+      attempt_ = 1;
+    }
     // A changed triangle's parts first to its new shape (most stay covered by it).
     auto reassign_all = [&](std::uint32_t from) {
       std::uint32_t hint = alive_[from] ? from : kNoFace;
@@ -1263,6 +1374,7 @@ class Collapser {
     for (std::uint32_t f : changed_) refs_of_[f].clear();
     for (std::size_t k = 0; k < of_u; ++k) faces_of_[v].push_back(changed_[k]);
     for (const auto& [to, patch] : reassigned_) refs_of_[to].push_back(patch);
+    for (std::uint32_t r : renewed_) ++epoch_[r];
     if (moves && geometry_ != nullptr) (*frame_)[v] = placed.frame;
     faces_of_[u].clear();
     quadric_[v] += quadric_[u];
@@ -1299,11 +1411,15 @@ class Collapser {
   std::vector<std::uint32_t> visited_;
   std::uint32_t visit_stamp_ = 0;
   std::vector<std::vector<Patch>> refs_of_;
+  std::vector<std::uint16_t> epoch_;     // per reference triangle: its union listings' epoch
+  std::vector<std::uint32_t> redone_;    // per reference triangle: the attempt that reproved it
+  std::uint32_t attempt_ = 0;            // collapses tried
   std::vector<std::vector<std::uint32_t>> refused_from_;  // per vertex: refused candidates' ends
   std::vector<std::uint32_t> ref_stamp_;
   std::vector<double> vertex_distance_;  // < 0: not searched yet
   std::uint32_t query_ = 0;
   bool overlay_ = false;     // the overlay proof applies (a closed reference)
+  bool union_first_ = false;  // reference triangles by the overlay proof before any split
   double local_rms2_ = 0.0;  // run()'s local_rms squared; 0: no local limit
   std::size_t live_ = 0;
   std::size_t grid_live_ = 0;  // live triangles when grid_ was made
@@ -1322,6 +1438,7 @@ class Collapser {
   std::vector<Box> new_boxes_;
   std::vector<PlaneSide> planes_;
   std::vector<std::pair<std::uint32_t, Patch>> reassigned_;
+  std::vector<std::uint32_t> renewed_;  // reference triangles proved again by this collapse
 };
 
 }  // namespace

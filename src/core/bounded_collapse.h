@@ -44,10 +44,14 @@
 //  - reference → surface within ε: every reference triangle is assigned one triangle of the
 //    surface that is within ε of its three corners, hence of all of it (the distance to one
 //    triangle is a convex function); where none is, its four parts of a midpoint split are
-//    assigned instead, down to kPatchDepth levels. The parts assigned to the triangles a
-//    collapse changes must each find such a triangle (or split into parts that do) among those
-//    around v afterwards, else the collapse is refused. A part no single triangle covers at
-//    the start is held: no collapse may change a triangle near it.
+//    assigned instead, down to kPatchDepth levels; on a closed surface, before a reference
+//    triangle is split, the overlay proof below with the roles swapped (the surface beneath
+//    the reference triangle) may prove it within ε of several surface triangles together,
+//    and it is listed with each of them. The parts assigned to the triangles a collapse
+//    changes must each find such a triangle (or split into parts that do, or be proved again
+//    by the overlay) among those around v afterwards, else the collapse is refused. A part no
+//    single triangle covers at the start (nor the overlay) is held: no collapse may change a
+//    triangle near it.
 // Both distances are computed in double on the float coordinates as stored; the bound holds
 // to rounding (far below 1e-6 of the coordinates).
 //
@@ -92,6 +96,7 @@ struct CollapseStats {
   std::size_t refused_shape = 0;
   std::size_t refused_distance = 0;  // either direction
   std::size_t overlay_proofs = 0;    // new triangles proved within ε by the overlay proof
+  std::size_t reference_overlay_proofs = 0;  // reference triangles proved so (the swapped one)
   std::size_t refused_crossing = 0;
   std::size_t passed_over_local_error = 0;  // candidates beyond local_rms, never queued
   std::size_t held_reference_triangles = 0;  // a part of each no single triangle covered at first

@@ -287,6 +287,33 @@ TEST(BoundedCollapse, TheOverlayProvesTrianglesFarLargerThanTheBound) {
   }
 }
 
+// A bound of a sixteenth of the finest voxel: reference triangles across an edge of the merge
+// are within it of two merged triangles together but of neither alone (nor, split three
+// levels, their parts); the overlay proof with the surface beneath them proves them, so they
+// are not held, and the collapses keep every guarantee.
+TEST(BoundedCollapse, TheOverlayProvesReferenceTrianglesNoSingleTriangleCovers) {
+  const Volume volume = blobs(3);
+  TriangleMesh mc = extract_isosurface(volume, 0.0f, one_thread());
+  to_patient(mc, volume.geometry());
+  MergeOptions merge;
+  merge.epsilon_mm = 0.05;
+  const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), merge);
+  TriangleMesh patient = merged;
+  to_patient(patient, volume.geometry());
+  TriangleMesh frame = merged;
+  TriangleMesh collapsed = patient;
+  CollapseOptions options{0.05, 0};
+  options.move_vertices = true;
+  options.geometry = &volume.geometry();
+  options.frame = &frame.positions;
+  const CollapseStats stats = collapse_within_bound(collapsed, mc, options);
+  remove_unreferenced_vertices(collapsed);
+  EXPECT_GT(stats.reference_overlay_proofs, 0u);
+  EXPECT_GT(stats.collapses, 0u);
+  EXPECT_LT(10 * stats.held_reference_triangles, mc.triangles.size());
+  expect_guarantees(mc, patient, collapsed, 0.05, true);
+}
+
 TEST(BoundedCollapse, RejectsABadBound) {
   const Volume volume = blobs(3);
   Surfaces s = surfaces_of(volume, 0.0f, 1.0);
