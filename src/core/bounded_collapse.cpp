@@ -942,9 +942,11 @@ class Collapser {
       const double h_lo = std::min({p0.h, p1.h, p2.h});
       const double h_hi = std::max({p0.h, p1.h, p2.h});
       if (h_lo > slab + hair || h_hi < -slab - hair) return;
-      if (std::max({p0.x, p1.x, p2.x}) < lo_x - hair || std::min({p0.x, p1.x, p2.x}) > hi_x + hair ||
-          std::max({p0.y, p1.y, p2.y}) < lo_y - hair || std::min({p0.y, p1.y, p2.y}) > hi_y + hair) {
-        return;
+      if (std::max({p0.x, p1.x, p2.x}) < lo_x - hair ||
+          std::min({p0.x, p1.x, p2.x}) > hi_x + hair ||
+          std::max({p0.y, p1.y, p2.y}) < lo_y - hair ||
+          std::min({p0.y, p1.y, p2.y}) > hi_y + hair) {
+        return;  // beside abc's box
       }
       const double orientation = (p1.x - p0.x) * (p2.y - p0.y) - (p1.y - p0.y) * (p2.x - p0.x);
       // Every corner of the piece is a point (x, y) of abc's plane with (x, y, h) on the

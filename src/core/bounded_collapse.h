@@ -111,9 +111,9 @@ struct CollapseStats {
 // the volume's border), the vertices of those edges are never collapsed away nor moved, so
 // its border stays as it is; the reference must be closed wherever the surface is (as marching
 // cubes' and type merging's surfaces of one volume and options are): the overlay proof runs
-// only when the surface has no border and counts on the reference having none. Throws std::invalid_argument for a bound not finite and > 0, a
-// local_rms not finite and >= 0, or placement with a geometry but no frame of one position a
-// vertex.
+// only when the surface has no border and counts on the reference having none. Throws
+// std::invalid_argument for a bound not finite and > 0, a local_rms not finite and >= 0, or
+// placement with a geometry but no frame of one position a vertex.
 CollapseStats collapse_within_bound(TriangleMesh& surface, const TriangleMesh& reference,
                                     const CollapseOptions& options);
 

@@ -259,31 +259,43 @@ TEST(BoundedCollapse, PlacementMovesVerticesKeepingEveryGuarantee) {
   EXPECT_THROW(collapse_within_bound(s.merged, s.mc, no_frame), std::invalid_argument);
 }
 
+// Marching cubes' surface of `volume` and its merge within `bound` (mm), the merge collapsed
+// within the same bound with placement (in the volume's frame), all in patient mm.
+struct Placed {
+  TriangleMesh mc;
+  TriangleMesh merged;
+  TriangleMesh collapsed;
+  CollapseStats stats;
+};
+Placed collapsed_with_placement(const Volume& volume, double bound) {
+  Placed out;
+  out.mc = extract_isosurface(volume, 0.0f, one_thread());
+  to_patient(out.mc, volume.geometry());
+  MergeOptions merge;
+  merge.epsilon_mm = bound;
+  TriangleMesh frame = extract_type_merged(volume, 0.0f, one_thread(), merge);
+  out.merged = frame;
+  to_patient(out.merged, volume.geometry());
+  out.collapsed = out.merged;
+  CollapseOptions options{bound, 0};
+  options.move_vertices = true;
+  options.geometry = &volume.geometry();
+  options.frame = &frame.positions;
+  out.stats = collapse_within_bound(out.collapsed, out.mc, options);
+  remove_unreferenced_vertices(out.collapsed);
+  return out;
+}
+
 // A bound of a quarter of the finest voxel, far below the merged triangles' size: the corner
 // and centroid tests prove few new triangles there; the overlay proof (the reference beneath a
 // triangle, projected onto it) proves most, and the sampled distance stays within the bound.
 TEST(BoundedCollapse, TheOverlayProvesTrianglesFarLargerThanTheBound) {
   for (unsigned seed : {3u, 7u}) {
     SCOPED_TRACE(seed);
-    const Volume volume = blobs(seed);
-    TriangleMesh mc = extract_isosurface(volume, 0.0f, one_thread());
-    to_patient(mc, volume.geometry());
-    MergeOptions merge;
-    merge.epsilon_mm = 0.2;
-    const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), merge);
-    TriangleMesh patient = merged;
-    to_patient(patient, volume.geometry());
-    TriangleMesh frame = merged;
-    TriangleMesh collapsed = patient;
-    CollapseOptions options{0.2, 0};
-    options.move_vertices = true;
-    options.geometry = &volume.geometry();
-    options.frame = &frame.positions;
-    const CollapseStats stats = collapse_within_bound(collapsed, mc, options);
-    remove_unreferenced_vertices(collapsed);
-    EXPECT_GT(stats.overlay_proofs, stats.collapses);  // several new triangles a collapse
-    EXPECT_LE(3 * collapsed.triangles.size(), patient.triangles.size());
-    expect_guarantees(mc, patient, collapsed, 0.2, true);
+    const Placed p = collapsed_with_placement(blobs(seed), 0.2);
+    EXPECT_GT(p.stats.overlay_proofs, p.stats.collapses);  // several new triangles a collapse
+    EXPECT_LE(3 * p.collapsed.triangles.size(), p.merged.triangles.size());
+    expect_guarantees(p.mc, p.merged, p.collapsed, 0.2, true);
   }
 }
 
@@ -292,26 +304,11 @@ TEST(BoundedCollapse, TheOverlayProvesTrianglesFarLargerThanTheBound) {
 // levels, their parts); the overlay proof with the surface beneath them proves them, so they
 // are not held, and the collapses keep every guarantee.
 TEST(BoundedCollapse, TheOverlayProvesReferenceTrianglesNoSingleTriangleCovers) {
-  const Volume volume = blobs(3);
-  TriangleMesh mc = extract_isosurface(volume, 0.0f, one_thread());
-  to_patient(mc, volume.geometry());
-  MergeOptions merge;
-  merge.epsilon_mm = 0.05;
-  const TriangleMesh merged = extract_type_merged(volume, 0.0f, one_thread(), merge);
-  TriangleMesh patient = merged;
-  to_patient(patient, volume.geometry());
-  TriangleMesh frame = merged;
-  TriangleMesh collapsed = patient;
-  CollapseOptions options{0.05, 0};
-  options.move_vertices = true;
-  options.geometry = &volume.geometry();
-  options.frame = &frame.positions;
-  const CollapseStats stats = collapse_within_bound(collapsed, mc, options);
-  remove_unreferenced_vertices(collapsed);
-  EXPECT_GT(stats.reference_overlay_proofs, 0u);
-  EXPECT_GT(stats.collapses, 0u);
-  EXPECT_LT(10 * stats.held_reference_triangles, mc.triangles.size());
-  expect_guarantees(mc, patient, collapsed, 0.05, true);
+  const Placed p = collapsed_with_placement(blobs(3), 0.05);
+  EXPECT_GT(p.stats.reference_overlay_proofs, 0u);
+  EXPECT_GT(p.stats.collapses, 0u);
+  EXPECT_LT(10 * p.stats.held_reference_triangles, p.mc.triangles.size());
+  expect_guarantees(p.mc, p.merged, p.collapsed, 0.05, true);
 }
 
 TEST(BoundedCollapse, RejectsABadBound) {
