@@ -424,13 +424,7 @@ class Collapser {
     // Parts split kPatchDepth levels are an eighth of a reference triangle: where ε is smaller
     // still, a part across an edge of the surface is seldom within ε of one triangle, so the
     // overlay proof is tried before any split (it lists a triangle several times, so only then).
-    double edge = 0.0;
-    for (const Triangle& t : ref_.triangles) {
-      const Point3 d = sub(as_point3(ref_.positions[t[1]]), as_point3(ref_.positions[t[0]]));
-      edge += std::sqrt(dot(d, d));
-    }
-    edge /= static_cast<double>(std::max<std::size_t>(ref_.triangles.size(), 1));
-    union_first_ = overlay_ && eps_ * (1 << kPatchDepth) < edge;
+    union_first_ = overlay_ && eps_ * (1 << kPatchDepth) < ref_grid_.mean_edge();
   }
 
   // The ends of every edge in one triangle only (a surface left open where it meets the
@@ -665,10 +659,7 @@ class Collapser {
   // are listed from changed_), by the overlay proof: its registrations, with the epoch
   // `epoch`, into reassigned_.
   bool union_covers(std::uint32_t r, std::uint16_t epoch) {
-    const Triangle& rt = ref_.triangles[r];
-    const std::array<Point3, 3> c = {as_point3(ref_.positions[rt[0]]),
-                                     as_point3(ref_.positions[rt[1]]),
-                                     as_point3(ref_.positions[rt[2]])};
+    const std::array<Point3, 3> c = corners(Patch{r, 0, 0});
     auto triangle = [&](std::uint32_t f) {
       const Triangle& t = s_.triangles[f];
       return std::array<Point3, 3>{pos_[t[0]], pos_[t[1]], pos_[t[2]]};
@@ -689,8 +680,11 @@ class Collapser {
     const Patch patch{r, kUnion, 0, epoch};
     const bool proved = overlay_proves(c[0], c[1], c[2], near_surface_triangles,
                                        [&](std::uint32_t f) { reassigned_.push_back({f, patch}); });
-    if (!proved) reassigned_.resize(mark);
-    if (proved) ++stats_.reference_overlay_proofs;
+    if (proved) {
+      ++stats_.reference_overlay_proofs;
+    } else {
+      reassigned_.resize(mark);
+    }
     return proved;
   }
 
@@ -964,42 +958,36 @@ class Collapser {
         }
         return true;
       };
-      // The common case: the reference triangle inside abc's prism and the slab, uncut.
+      // The common case: the reference triangle inside abc's prism and the slab, its own piece.
       bool inside = h_lo > -slab + hair && h_hi < slab - hair;
       for (int k = 0; k < 3 && inside; ++k) {
         for (const LocalPoint& x : {p0, p1, p2}) {
           if (edge[k][0] * x.x + edge[k][1] * x.y + edge[k][2] < hair) inside = false;
         }
       }
-      if (inside) {
-        signed_twice_areas += orientation;
-        if (orientation > 0.0) {
-          if (!within(poly)) proved = false;
-          involved(id);
+      if (!inside) {
+        for (double face : {slab, -slab}) {
+          if (h_lo > face + hair || h_hi < face - hair) continue;
+          clip(poly, work, [&](const LocalPoint& x) { return face + hair - x.h; });
+          clip(work, piece, [&](const LocalPoint& x) { return x.h - (face - hair); });
+          in_triangle(piece, work, hair);
+          if (work.n > 0 || work.overflow) {
+            proved = false;  // the reference crosses a face of the slab over abc
+            return;
+          }
         }
-        return;
-      }
-      for (double face : {slab, -slab}) {
-        if (h_lo > face + hair || h_hi < face - hair) continue;
-        clip(poly, work, [&](const LocalPoint& x) { return face + hair - x.h; });
-        clip(work, piece, [&](const LocalPoint& x) { return x.h - (face - hair); });
-        in_triangle(piece, work, hair);
-        if (work.n > 0 || work.overflow) {
-          proved = false;  // the reference crosses a face of the slab over abc
+        clip(poly, work, [&](const LocalPoint& x) { return slab - x.h; });
+        clip(work, piece, [&](const LocalPoint& x) { return x.h + slab; });
+        in_triangle(piece, work, 0.0);  // the piece, in work
+        if (work.overflow) {
+          proved = false;
           return;
         }
+        if (work.n < 3) return;
       }
-      clip(poly, work, [&](const LocalPoint& x) { return slab - x.h; });
-      clip(work, piece, [&](const LocalPoint& x) { return x.h + slab; });
-      in_triangle(piece, work, 0.0);  // the piece, in work
-      if (work.overflow) {
-        proved = false;
-        return;
-      }
-      if (work.n < 3) return;
-      signed_twice_areas += twice_signed_area(work);
+      signed_twice_areas += inside ? orientation : twice_signed_area(work);
       if (orientation > 0.0) {
-        if (!within(work)) proved = false;
+        if (!within(inside ? poly : work)) proved = false;
         involved(id);
       }
     });
@@ -1020,12 +1008,8 @@ class Collapser {
     const Proof proof = corners_prove(a, b, c, d, 0);
     if (proof != Proof::unknown) return proof == Proof::yes;
     auto near_reference_triangles = [&](const Point3& lo, const Point3& hi, const auto& f) {
-      ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(), [&](std::uint32_t r) {
-        const Triangle& rt = ref_.triangles[r];
-        f(std::array<Point3, 3>{as_point3(ref_.positions[rt[0]]), as_point3(ref_.positions[rt[1]]),
-                                as_point3(ref_.positions[rt[2]])},
-          r);
-      });
+      ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(),
+                          [&](std::uint32_t r) { f(corners(Patch{r, 0, 0}), r); });
     };
     if (overlay_ && overlay_proves(a, b, c, near_reference_triangles, [](std::uint32_t) {})) {
       ++stats_.overlay_proofs;

@@ -41,15 +41,14 @@ class TriangleGrid {
       }
     }
     // Cell edge: about two triangles per cell for a surface (cells ~ area / edge²).
-    double mean_edge = 0.0;
     for (const auto& t : mesh.triangles) {
       const Point3 p0 = as_point3(mesh.positions[t[0]]);
       const Point3 p1 = as_point3(mesh.positions[t[1]]);
-      mean_edge += std::sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) + (p1[1] - p0[1]) * (p1[1] - p0[1]) +
-                             (p1[2] - p0[2]) * (p1[2] - p0[2]));
+      mean_edge_ += std::sqrt((p1[0] - p0[0]) * (p1[0] - p0[0]) +
+                              (p1[1] - p0[1]) * (p1[1] - p0[1]) + (p1[2] - p0[2]) * (p1[2] - p0[2]));
     }
-    mean_edge /= static_cast<double>(mesh.triangles.size());
-    cell_ = std::max(2.0 * mean_edge, 1e-9);
+    mean_edge_ /= static_cast<double>(mesh.triangles.size());
+    cell_ = std::max(2.0 * mean_edge_, 1e-9);
     for (int a = 0; a < 3; ++a) {
       // Cap the cell count per axis so a stray far triangle cannot blow up the grid.
       const double extent = hi[a] - lo_[a];
@@ -109,6 +108,9 @@ class TriangleGrid {
     }
     return search(p, stamp, query, best, &hint, 0.0);
   }
+
+  // The mean length of the triangles' first edges.
+  double mean_edge() const { return mean_edge_; }
 
   // Calls f(t) once for every triangle bucketed in a cell that meets the box [lo, hi]: every
   // triangle that meets the box, and some near it (`stamp` and `query` as for the searches).
@@ -255,6 +257,7 @@ class TriangleGrid {
   }
 
   const TriangleMesh& mesh_;
+  double mean_edge_ = 0.0;
   Point3 lo_{};
   double cell_ = 1.0;
   std::array<int, 3> dims_{};
