@@ -5,13 +5,17 @@
 //
 //   collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300] [--targets 0.25,0.1]
 //                    [--bound-steps 2.5] [--local-share 0] [--place 0] [--repeat 1]
+//                    [--ladder S1,S2,...]
 //
 // --targets: shares of marching cubes' triangles; --bound-steps: the bound in finest voxel
 // steps (2.5 = half of kReductionCapSteps, where --reduce-to collapses first); --local-share:
 // CollapseOptions::local_rms as a share of the bound (0: none; --max-error uses
 // kLocalErrorShare), with targets of 0 to collapse as far as that allows; --place 1: with
 // placement (CollapseOptions::move_vertices, in patient mm). Each run also prints the maximum
-// and mean distance to marching cubes' surface (both surfaces sampled every 0.5 mm). Run under
+// and mean distance to marching cubes' surface (both surfaces sampled every 0.5 mm). --ladder:
+// after the collapses within --bound-steps stop short of a target, collapses go on from where
+// they stopped within each larger bound of the list (finest voxel steps) in turn, each rung's
+// count and CPU printed. Run under
 // `perf record -g` or `valgrind --tool=callgrind` to see where the collapse time goes.
 #include <algorithm>
 #include <chrono>
@@ -45,7 +49,7 @@ int usage() {
   std::fprintf(stderr,
                "usage: collapse_profile (--series DIR | --synthetic NXxNYxNZ) [--iso 300]\n"
                "         [--targets 0.25,0.1] [--bound-steps 2.5] [--local-share 0] [--place 0]\n"
-               "         [--repeat 1]\n");
+               "         [--repeat 1] [--ladder S1,S2,...]\n");
   return 2;
 }
 
@@ -53,7 +57,7 @@ int usage() {
 
 int main(int argc, char** argv) {
   std::setvbuf(stdout, nullptr, _IOLBF, 0);
-  std::string series_dir, synthetic, iso_list = "300", targets = "0.25,0.1";
+  std::string series_dir, synthetic, iso_list = "300", targets = "0.25,0.1", ladder;
   double bound_steps = 0.5 * core::kReductionCapSteps;
   double local_share = 0.0;
   bool place = false;
@@ -69,6 +73,7 @@ int main(int argc, char** argv) {
     else if (key == "--local-share") local_share = std::stod(value);
     else if (key == "--place") place = value != "0";
     else if (key == "--repeat") repeat = std::max(1, std::stoi(value));
+    else if (key == "--ladder") ladder = value;
     else return usage();
   }
   if (series_dir.empty() == synthetic.empty()) return usage();
@@ -105,7 +110,21 @@ int main(int argc, char** argv) {
         const double cpu_start = cpu_ms();
         core::CollapseOptions collapse{bound, n, local_share * bound};
         collapse.move_vertices = place;
-        const core::CollapseStats s = core::collapse_within_bound(work, reference, collapse);
+        core::CollapseStats s = core::collapse_within_bound(work, reference, collapse);
+        double rung_bound = bound;
+        for (const std::string& rung : bench::split(ladder)) {
+          if (work.triangles.size() <= n) break;
+          std::printf("  within %.3f mm: %zu triangles after %.1f ms CPU\n", rung_bound,
+                      work.triangles.size(), cpu_ms() - cpu_start);
+          rung_bound = std::stod(rung) * std::min({g.spacing(0), g.spacing(1), g.spacing(2)});
+          collapse.bound = rung_bound;
+          collapse.local_rms = local_share * rung_bound;
+          const core::CollapseStats more = core::collapse_within_bound(work, reference, collapse);
+          s.collapses += more.collapses;
+          s.refused_shape += more.refused_shape;
+          s.refused_distance += more.refused_distance;
+        }
+        if (!ladder.empty()) std::printf("  last bound %.3f mm\n", rung_bound);
         const double cpu = cpu_ms() - cpu_start;
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
         core::remove_unreferenced_vertices(work);

@@ -238,8 +238,8 @@ int main(int argc, char** argv) {
       double ms = ms_since(start);
       core::to_patient(r.mesh, geometry);
       char what[96];
-      std::snprintf(what, sizeof what, "tm --reduce-to (%s, %.2f mm)",
-                    r.target_met ? "met" : "NOT met", r.bound_mm);
+      std::snprintf(what, sizeof what, "tm --reduce-to (%s, %.2f mm, %zu tries)",
+                    r.target_met ? "met" : "NOT met", r.bound_mm, r.tries);
       print(what, ms, measure(r.mesh, mc, mc_check, threads), mc.triangles.size());
       if (r.collapse.collapses > 0 || r.collapse.held_reference_triangles > 0) {
         std::printf("    second stage: %zu collapses; refused: %zu topology, %zu shape, %zu distance, "
