@@ -591,9 +591,11 @@ int BatchRun::run() {
     // its estimate alone exceeds the budget (the hard limit then decides).
     while (!queue_.empty() && running.size() < options_.jobs) {
       const StudyPlan& plan = *queue_.front().plan;
+      ConversionShape study_shape = shape_;
+      study_shape.int16_samples = plan.int16_samples;
       const std::uint64_t estimate = conversion_memory_estimate(
           working_voxels(plan.grid_size, plan.spacing_mm, options_.convert.voxel_size_mm),
-          shape_);
+          study_shape);
       if (!running.empty() && reserved + estimate > budget_) break;
       PendingStudy next = std::move(queue_.front());
       queue_.pop_front();

@@ -188,6 +188,7 @@ void add_file_studies(const dicom::FolderScan& scan, const std::string& name_pat
                           static_cast<std::uint64_t>(shape.size.ny),
                           static_cast<std::uint64_t>(shape.size.nz)};
         plan.spacing_mm = shape.spacing_mm();
+        plan.int16_samples = shape.int16_samples;
         plan.voxels = plan.grid_size[0] * plan.grid_size[1] * plan.grid_size[2] * shape.layers;
       } catch (const CommandError& refused) {
         plan.refusal = std::string(source_name(plan.source)) + " file: " + refused.message;

@@ -9,6 +9,8 @@
 #include <regex>
 #include <stdexcept>
 
+#include "dicom/series_loader.h"
+
 namespace typemerge::app {
 namespace {
 
@@ -230,6 +232,7 @@ std::vector<StudyPlan> plan_studies(
       plan.voxels = info.voxels();
       plan.grid_size = info.grid_size();
       plan.spacing_mm = info.spacing_mm();
+      plan.int16_samples = dicom::loads_as_int16(info);
     } else {
       plan.refusal = refusal_reason(series, filter);
     }

@@ -51,6 +51,7 @@ struct StudyPlan {
   std::uint64_t voxels = 0;       // of the chosen series' volume
   std::array<std::uint64_t, 3> grid_size{};  // its grid (columns, rows, slices)
   std::array<double, 3> spacing_mm{};         // and spacing
+  bool int16_samples = false;  // and it loads as int16 samples (for the memory estimate)
   std::string output_name;        // relative folder under the output root ('/'-separated)
 };
 

@@ -125,7 +125,7 @@ LoadedInput load_volume_file_input(const InputOptions& options, const std::strin
     before_load({series.id,
                  {static_cast<std::uint64_t>(shape.size.nx), static_cast<std::uint64_t>(shape.size.ny),
                   static_cast<std::uint64_t>(shape.size.nz)},
-                 shape.spacing_mm()});
+                 shape.spacing_mm(), shape.int16_samples});
   }
   VolumeFile file = read_volume_file(options.input, kind);
   input.scan.series.push_back(std::move(series));

@@ -46,7 +46,9 @@ struct InputShape {
   std::string id;
   std::array<std::uint64_t, 3> size{};
   std::array<double, 3> spacing{};
-  bool int16_samples = false;  // the volume will hold int16 samples (dicom::loads_as_int16)
+  // The volume will hold int16 samples (dicom::loads_as_int16; for a NIfTI or NRRD file,
+  // VolumeFileShape::int16_samples).
+  bool int16_samples = false;
   std::array<std::uint64_t, 3> grid_size() const { return size; }
   std::array<double, 3> spacing_mm() const { return spacing; }
 };

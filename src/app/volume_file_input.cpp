@@ -19,6 +19,8 @@ VolumeFileShape read_volume_file_shape(const std::filesystem::path& path, InputK
       shape.geometry = header.geometry;
       shape.segmentation = header.intent_label;
       shape.type = header.type;
+      shape.int16_samples =
+          volume_file::int16_by_type(header.type, header.slope, header.inter).value_or(false);
     } else if (kind == InputKind::seg) {
       // The label layers are known only once overlaps are found: the estimate counts one.
       const seg::SegHeader header = seg::read_seg_header(path);
@@ -35,6 +37,7 @@ VolumeFileShape read_volume_file_shape(const std::filesystem::path& path, InputK
       shape.geometry = header.geometry;
       shape.segmentation = header.segmentation;
       shape.type = header.type;
+      shape.int16_samples = volume_file::int16_by_type(header.type, 1.0, 0.0).value_or(false);
     }
   } catch (const nifti::ReadError& error) {
     throw CommandError{kExitInputRefused, error.what()};

@@ -25,6 +25,9 @@ struct VolumeFileShape {
   core::IndexToPatient geometry;
   bool segmentation = false;  // the file says it holds labels (Slicer segments, NIfTI intent)
   volume_file::SampleType type = volume_file::SampleType::float32;
+  // Its samples load as int16, as the header alone tells (volume_file::int16_by_type: an
+  // integer type whose every value, scaled, fits); false where the data decides, or they do not.
+  bool int16_samples = false;
 
   std::array<double, 3> spacing_mm() const {
     return {geometry.spacing(0), geometry.spacing(1), geometry.spacing(2)};

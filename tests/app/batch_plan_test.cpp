@@ -68,6 +68,9 @@ TEST(BatchPlan, FindsEveryStudyAndChoosesItsSeriesByTheDocumentedRule) {
   EXPECT_EQ(a->series_id, series_with_description("thin 1mm"));  // most slices; not the scout
   EXPECT_EQ(b->series_id, series_with_description("sharp 1mm"));  // same count, thinner
   EXPECT_EQ(a->voxels, 24u * 24u * 14u);
+  // Its integer rescale loads as int16: the memory estimate that schedules it counts 2 bytes a
+  // voxel for the volume, as convert's own does (app/memory_budget.h).
+  EXPECT_TRUE(a->int16_samples);
   EXPECT_EQ(a->files.size(), 14u + 7u + 1u);  // every file of the study, localizer included
   EXPECT_TRUE(d->series_id.empty());
   EXPECT_NE(d->refusal.find("missing"), std::string::npos) << d->refusal;

@@ -487,7 +487,7 @@ TEST(Batch, TimeAndMemoryLimitsFailTheStudyNotTheBatch) {
     };
     ct_writer::write_series(ct_writer::make_axial_series(layout), noise_tree / "noise");
   }
-  // 160 x 160 x 96 voxels: estimate 1.1 x (6 bytes a voxel + 192 MiB) = 227 MiB.
+  // 160 x 160 x 96 voxels, int16 samples: estimate 1.1 x (4 bytes a voxel + 192 MiB) = 222 MiB.
   run = run_cli("batch " + noise_tree.string() + " --preset bone --out " +
                 (work / "hard").string() + " --max-memory 240M");
   summary = summary_of(work / "hard" / "summary.json");

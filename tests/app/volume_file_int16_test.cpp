@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "app/cli_runner.h"
+#include "app/input_options.h"
+#include "app/volume_file_input.h"
 #include "nifti/nifti_reader.h"
 #include "nrrd/nrrd_reader.h"
 #include "support/scratch_files.h"
@@ -122,6 +124,59 @@ TEST_F(VolumeFileInt16Test, Uint8LabelMapGivesTheFloatFilesBytes) {
     EXPECT_GT(a.size(), 84u + 50u * 100u) << label;
     EXPECT_TRUE(a == b) << "label " << label << ": uint8 and float inputs differ";
   }
+}
+
+// --max-memory and batch schedule a study by its estimate before loading it: a file whose header
+// alone shows that it loads as int16 is counted at 2 bytes a voxel, as a DICOM CT series is
+// (app/memory_budget.h); where its data decides, or it loads as float, at 4.
+TEST_F(VolumeFileInt16Test, TheHeaderTellsTheEstimateWhichFilesLoadAsInt16) {
+  const std::vector<double> values = grey_scene();
+  struct Case {
+    const char* name;
+    int datatype;
+    double slope;
+    double inter;
+    bool int16;
+  };
+  const Case cases[] = {{"int16", test::kDtInt16, 0, 0, true},
+                        {"int16_offset", test::kDtInt16, 1, -1024, false},  // the data decides
+                        {"uint8", test::kDtUint8, 0, 0, true},
+                        {"int32", test::kDtInt32, 0, 0, false},            // the data decides
+                        {"int16_scaled", test::kDtInt16, 0.5, 0, false},
+                        {"float", test::kDtFloat32, 0, 0, false}};
+  for (const Case& c : cases) {
+    test::NiftiSpec spec = nifti(c.datatype, values);
+    if (c.datatype == test::kDtUint8) {
+      for (double& v : spec.values) v = v > 0 ? 200 : 0;
+    }
+    spec.slope = c.slope;
+    spec.inter = c.inter;
+    const fs::path path = dir_ / (std::string(c.name) + ".nii");
+    test::write_nifti(path, spec);
+    EXPECT_EQ(read_volume_file_shape(path, InputKind::nifti).int16_samples, c.int16) << c.name;
+    InputOptions options;
+    options.input = path.string();
+    bool seen = !c.int16;
+    const LoadedInput loaded =
+        load_input(options, "", [&](const InputShape& shape) { seen = shape.int16_samples; });
+    EXPECT_EQ(seen, c.int16) << c.name << ": what convert's estimate is given";
+    // Never counted at 2 bytes a voxel when it loads as float.
+    if (!loaded.loaded.volume.holds_int16()) EXPECT_FALSE(c.int16) << c.name;
+  }
+  const std::string geometry =
+      "dimension: 3\nsizes: 36 36 36\nspace: left-posterior-superior\n"
+      "space directions: (0.8,0,0) (0,0.8,0) (0,0,1.1)\nspace origin: (14,-9,40)\n"
+      "encoding: raw\nendian: little\n";
+  test::write_bytes(dir_ / "int16.nrrd",
+                    test::nrrd_bytes("type: short\n" + geometry,
+                                     test::raw_samples<std::int16_t>(values), false),
+                    false);
+  test::write_bytes(dir_ / "float.nrrd",
+                    test::nrrd_bytes("type: float\n" + geometry, test::raw_samples<float>(values),
+                                     false),
+                    false);
+  EXPECT_TRUE(read_volume_file_shape(dir_ / "int16.nrrd", InputKind::nrrd).int16_samples);
+  EXPECT_FALSE(read_volume_file_shape(dir_ / "float.nrrd", InputKind::nrrd).int16_samples);
 }
 
 }  // namespace
