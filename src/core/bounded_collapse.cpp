@@ -35,6 +35,9 @@ constexpr double kOverlaySlab = 1.25;
 // Halvings of a new triangle the corner test may make (one search each) before the centroid
 // test takes over.
 constexpr int kBisectDepth = 2;
+// Their parts' cover radius is about half the triangle's: beyond this many ε, no halving proves
+// it and the overlay proof is tried before them.
+constexpr double kHalvingsReach = 2.0;
 // cos 78°: a new triangle may turn at most this far from the one it replaces.
 constexpr double kMinTurnCosine = 0.2079;
 // The crossing grid's cell, in mean edges of the live triangles.
@@ -1005,22 +1008,28 @@ class Collapser {
     const std::array<double, 3> d = {vertex_distance(t[0]), vertex_distance(t[1]),
                                      vertex_distance(t[2])};
     if (!std::isfinite(std::max({d[0], d[1], d[2]}))) return false;  // a corner ε or more away
-    // Every proof is sound, so which one proves t first does not change the answer; the ones
-    // without a search go first, and the overlay before the searched halvings, which rarely
-    // prove triangles several times larger than ε.
-    if (std::max({d[0], d[1], d[2]}) + cover_radius(a, b, c) * (1.0 + 1e-12) <= eps_) {
-      return true;
-    }
+    // Every proof is sound, so which one proves t first does not change the answer, only the
+    // time: the corner test without a search first; then the searched halvings where they can
+    // succeed (kBisectDepth halvings at the longest side leave parts of about half t's cover
+    // radius, so not beyond 2 ε), else the overlay first.
+    const double radius = cover_radius(a, b, c);
+    if (std::max({d[0], d[1], d[2]}) + radius * (1.0 + 1e-12) <= eps_) return true;
     auto near_reference_triangles = [&](const Point3& lo, const Point3& hi, const auto& f) {
       ref_grid_.visit_box(lo, hi, ref_stamp_, next_query(),
                           [&](std::uint32_t r) { f(corners(Patch{r, 0, 0}), r); });
     };
-    if (overlay_ && overlay_proves(a, b, c, near_reference_triangles, [](std::uint32_t) {})) {
+    auto overlay = [&] {
+      if (!overlay_ || !overlay_proves(a, b, c, near_reference_triangles, [](std::uint32_t) {})) {
+        return false;
+      }
       ++stats_.overlay_proofs;
       return true;
-    }
+    };
+    const bool overlay_first = radius > kHalvingsReach * eps_;
+    if (overlay_first && overlay()) return true;
     const Proof proof = corners_prove(a, b, c, d, 0);
     if (proof != Proof::unknown) return proof == Proof::yes;
+    if (!overlay_first && overlay()) return true;
     return near_reference(a, b, c, 0);
   }
 
