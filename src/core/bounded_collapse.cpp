@@ -461,7 +461,8 @@ class Collapser {
       for (int k = 0; k < 3; ++k) push(t[k], t[(k + 1) % 3]);
     }
     heap_.make();
-    std::size_t compact_at = 2 * heap_.size();
+    auto compact_after = [](std::size_t size) { return std::max<std::size_t>(size + size / 10, 1024); };
+    std::size_t compact_at = compact_after(heap_.size());
     while (!heap_.empty() && (target == 0 || live_ > target)) {
       const Candidate c = heap_.pop();
       if (stale(c)) continue;
@@ -474,10 +475,12 @@ class Collapser {
       if (3 * live_ < 2 * grid_live_) rebuild_grid();
       requeue_around(c.to);
       if (heap_.size() > compact_at) {
-        // Stale candidates out (a collapse outdates those around it), so the queue stays
-        // within a few entries an edge.
+        // Stale candidates out (a collapse outdates those around it) once the queue has grown
+        // by a tenth: left in, they are most of what is popped (86 % on the abdomen's bone at
+        // 10 %), each a sift through the heap, and the pass over it costs less. Only stale
+        // entries go, and the order is total, so the collapses are the same.
         heap_.erase_if([&](const Candidate& e) { return stale(e); });
-        compact_at = std::max<std::size_t>(2 * heap_.size(), 1024);
+        compact_at = compact_after(heap_.size());
       }
     }
     // Dead triangles out, the others in their order.
