@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -406,6 +407,7 @@ class Collapser {
     epoch_.assign(ref_.triangles.size(), 0);
     redone_.assign(ref_.triangles.size(), 0);
     vertex_distance_.assign(nv, -1.0);
+    mark_reference_vertices();
     live_ = nf;
     grid_live_ = nf;
     for (std::uint32_t f = 0; f < nf; ++f) {
@@ -428,6 +430,34 @@ class Collapser {
     // still, a part across an edge of the surface is seldom within ε of one triangle, so the
     // overlay proof is tried before any split (it lists a triangle several times, so only then).
     union_first_ = overlay_ && eps_ * (1 << kPatchDepth) < ref_grid_.mean_edge();
+  }
+
+  // A surface vertex at exactly the position of a corner of a reference triangle is at
+  // distance 0 from the reference, as every vertex of a type-merged surface is (marching
+  // cubes' vertices, at the same floats): known without the search vertex_distance makes,
+  // from the corners' positions sorted (their bits, compared as integers).
+  void mark_reference_vertices() {
+    using Key = std::array<std::uint32_t, 3>;
+    auto key = [](const std::array<float, 3>& p) {
+      Key k{};
+      std::memcpy(k.data(), p.data(), sizeof k);
+      return k;
+    };
+    std::vector<Key> corners;
+    corners.reserve(ref_.positions.size());
+    std::vector<std::uint8_t> used(ref_.positions.size(), 0);
+    for (const Triangle& t : ref_.triangles) {
+      for (std::uint32_t v : t) {
+        if (used[v] == 0) corners.push_back(key(ref_.positions[v]));
+        used[v] = 1;
+      }
+    }
+    std::sort(corners.begin(), corners.end());
+    for (std::size_t w = 0; w < s_.positions.size(); ++w) {
+      if (std::binary_search(corners.begin(), corners.end(), key(s_.positions[w]))) {
+        vertex_distance_[w] = 0.0;
+      }
+    }
   }
 
   // The ends of every edge in one triangle only (a surface left open where it meets the
