@@ -121,8 +121,13 @@ int main(int argc, char** argv) {
           collapse.local_rms = local_share * rung_bound;
           const core::CollapseStats more = core::collapse_within_bound(work, reference, collapse);
           s.collapses += more.collapses;
+          s.refused_topology += more.refused_topology;
           s.refused_shape += more.refused_shape;
           s.refused_distance += more.refused_distance;
+          s.refused_crossing += more.refused_crossing;
+          s.overlay_proofs += more.overlay_proofs;
+          s.reference_overlay_proofs += more.reference_overlay_proofs;
+          s.held_reference_triangles = more.held_reference_triangles;  // the last rung's
         }
         if (!ladder.empty()) std::printf("  last bound %.3f mm\n", rung_bound);
         const double cpu = cpu_ms() - cpu_start;

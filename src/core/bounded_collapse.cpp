@@ -491,7 +491,9 @@ class Collapser {
       for (int k = 0; k < 3; ++k) push(t[k], t[(k + 1) % 3]);
     }
     heap_.make();
-    auto compact_after = [](std::size_t size) { return std::max<std::size_t>(size + size / 10, 1024); };
+    auto compact_after = [](std::size_t size) {
+      return std::max<std::size_t>(size + size / 10, 1024);
+    };
     std::size_t compact_at = compact_after(heap_.size());
     while (!heap_.empty() && (target == 0 || live_ > target)) {
       const Candidate c = heap_.pop();
@@ -838,9 +840,9 @@ class Collapser {
   }
 
   // An upper bound of the distance from surface vertex w to the reference (infinite when it is
-  // ε or more), searched once a vertex and again when it moves. The search stops at the first
-  // reference triangle through w (a distance of 0, the nearest), as for every vertex of a
-  // type-merged surface not moved, made of marching cubes' vertices.
+  // ε or more): 0 at a reference corner (mark_reference_vertices), else searched once a vertex
+  // and again when it moves; the search stops at the first reference triangle through w (a
+  // distance of 0, the nearest).
   double vertex_distance(std::uint32_t w) {
     double& d = vertex_distance_[w];
     if (d < 0.0) {
@@ -1041,8 +1043,9 @@ class Collapser {
     const std::array<double, 3> d = {vertex_distance(t[0]), vertex_distance(t[1]),
                                      vertex_distance(t[2])};
     if (!std::isfinite(std::max({d[0], d[1], d[2]}))) return false;  // a corner ε or more away
-    // Every proof is sound, so which one proves t first does not change the answer, only the
-    // time: the corner test without a search first; then the searched halvings where they can
+    // Every proof is sound, so which one proves t first changes only the time (but for a
+    // searched point exactly ε away, which the halvings refuse and the overlay may prove): the
+    // corner test without a search first; then the searched halvings where they can
     // succeed (kBisectDepth halvings at the longest side leave parts of about half t's cover
     // radius, so not beyond 2 ε), else the overlay first.
     const double radius = cover_radius(a, b, c);

@@ -51,6 +51,24 @@ test::NiftiSpec nifti(int datatype, const std::vector<double>& values) {
   return spec;
 }
 
+// int16.nrrd and float.nrrd in `dir`: the same values as shorts and as floats, gzip-encoded or
+// raw, on the NIfTI files' grid.
+void write_nrrd_pair(const fs::path& dir, const std::vector<double>& values, bool gzip) {
+  const std::string header = std::string(
+                                 "dimension: 3\nsizes: 36 36 36\nspace: left-posterior-superior\n"
+                                 "space directions: (0.8,0,0) (0,0.8,0) (0,0,1.1)\n"
+                                 "space origin: (14,-9,40)\nendian: little\nencoding: ") +
+                             (gzip ? "gzip\n" : "raw\n");
+  test::write_bytes(dir / "int16.nrrd",
+                    test::nrrd_bytes("type: short\n" + header,
+                                     test::raw_samples<std::int16_t>(values), gzip),
+                    false);
+  test::write_bytes(dir / "float.nrrd",
+                    test::nrrd_bytes("type: float\n" + header, test::raw_samples<float>(values),
+                                     gzip),
+                    false);
+}
+
 class VolumeFileInt16Test : public ::testing::Test {
  protected:
   void SetUp() override { dir_ = test::fresh_dir("int16_files"); }
@@ -71,18 +89,7 @@ TEST_F(VolumeFileInt16Test, GreyNiftiAndNrrdGiveTheFloatFilesBytes) {
   const std::vector<double> values = grey_scene();
   test::write_nifti(dir_ / "int16.nii.gz", nifti(test::kDtInt16, values));
   test::write_nifti(dir_ / "float.nii.gz", nifti(test::kDtFloat32, values));
-  const std::string geometry =
-      "dimension: 3\nsizes: 36 36 36\nspace: left-posterior-superior\n"
-      "space directions: (0.8,0,0) (0,0.8,0) (0,0,1.1)\nspace origin: (14,-9,40)\n"
-      "encoding: gzip\nendian: little\n";
-  test::write_bytes(dir_ / "int16.nrrd",
-                    test::nrrd_bytes("type: short\n" + geometry,
-                                     test::raw_samples<std::int16_t>(values), true),
-                    false);
-  test::write_bytes(dir_ / "float.nrrd",
-                    test::nrrd_bytes("type: float\n" + geometry,
-                                     test::raw_samples<float>(values), true),
-                    false);
+  write_nrrd_pair(dir_, values, true);
   // The loaders' storage choice.
   EXPECT_TRUE(nifti::read_nifti(dir_ / "int16.nii.gz").volume.holds_int16());
   EXPECT_FALSE(nifti::read_nifti(dir_ / "float.nii.gz").volume.holds_int16());
@@ -163,18 +170,7 @@ TEST_F(VolumeFileInt16Test, TheHeaderTellsTheEstimateWhichFilesLoadAsInt16) {
     // Never counted at 2 bytes a voxel when it loads as float.
     if (!loaded.loaded.volume.holds_int16()) EXPECT_FALSE(c.int16) << c.name;
   }
-  const std::string geometry =
-      "dimension: 3\nsizes: 36 36 36\nspace: left-posterior-superior\n"
-      "space directions: (0.8,0,0) (0,0.8,0) (0,0,1.1)\nspace origin: (14,-9,40)\n"
-      "encoding: raw\nendian: little\n";
-  test::write_bytes(dir_ / "int16.nrrd",
-                    test::nrrd_bytes("type: short\n" + geometry,
-                                     test::raw_samples<std::int16_t>(values), false),
-                    false);
-  test::write_bytes(dir_ / "float.nrrd",
-                    test::nrrd_bytes("type: float\n" + geometry, test::raw_samples<float>(values),
-                                     false),
-                    false);
+  write_nrrd_pair(dir_, values, false);
   EXPECT_TRUE(read_volume_file_shape(dir_ / "int16.nrrd", InputKind::nrrd).int16_samples);
   EXPECT_FALSE(read_volume_file_shape(dir_ / "float.nrrd", InputKind::nrrd).int16_samples);
 }
