@@ -11,6 +11,7 @@
 #include <dcmtk/dcmjpls/djdecode.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -19,6 +20,10 @@
 #include "dicom/header_reader.h"
 #include "dicom/jpeg2000_decoder.h"
 #include "dicom/nesting_prescan.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace typemerge::dicom {
 namespace {
@@ -122,6 +127,71 @@ void write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapp
     highest = std::max(highest, v);
     target.hu16[p] = static_cast<std::int16_t>(v);
   }
+  if (lowest < std::numeric_limits<std::int16_t>::min() ||
+      highest > std::numeric_limits<std::int16_t>::max()) {
+    throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
+  }
+}
+
+// write_frame_integral for 16-bit words under slope 1 (nearly every CT series), eight samples
+// at a time with SSE2: the same values, and the same NotInt16 for one out of range. The
+// compilers leave the scalar loop scalar (64-bit products, the padding's branch), and it was
+// about 6 % of a bone conversion's CPU on a 300-slice series (perf); other slopes and 8-bit
+// words take the scalar loop.
+void write_words_integral(const FrameTarget& target, std::size_t n, const HuMapping& mapping,
+                          const StoredLayout& layout, const Uint16* words) {
+  std::size_t p = 0;
+  std::int32_t lowest = std::numeric_limits<std::int32_t>::max();
+  std::int32_t highest = std::numeric_limits<std::int32_t>::min();
+#if defined(__SSE2__)
+  if (mapping.slope == 1.0) {
+    const __m128i zero = _mm_setzero_si128();
+    const __m128i shift = _mm_cvtsi32_si128(static_cast<int>(layout.shift));
+    const __m128i mask = _mm_set1_epi16(static_cast<std::int16_t>(layout.mask & 0xFFFFu));
+    const __m128i sign = _mm_set1_epi32(layout.sign_bit);
+    const __m128i intercept = _mm_set1_epi32(static_cast<std::int32_t>(mapping.intercept));
+    const __m128i air = _mm_set1_epi32(static_cast<std::int32_t>(kAirHu));
+    const __m128i pad_low = _mm_set1_epi32(mapping.padding_low);
+    const __m128i pad_high = _mm_set1_epi32(mapping.padding_high);
+    __m128i low = _mm_set1_epi32(lowest);
+    __m128i high = _mm_set1_epi32(highest);
+    // StoredLayout::value in four 32-bit lanes: (bits ^ sign) − sign sign-extends from the
+    // stored width (sign 0: unsigned), then HuMapping's padding and intercept.
+    auto hu = [&](__m128i bits) {
+      const __m128i stored = _mm_sub_epi32(_mm_xor_si128(bits, sign), sign);
+      const __m128i value = _mm_add_epi32(stored, intercept);
+      if (!mapping.has_padding) return value;
+      const __m128i outside =
+          _mm_or_si128(_mm_cmpgt_epi32(pad_low, stored), _mm_cmpgt_epi32(stored, pad_high));
+      return _mm_or_si128(_mm_and_si128(outside, value), _mm_andnot_si128(outside, air));
+    };
+    auto track = [&](__m128i v) {
+      const __m128i below = _mm_cmplt_epi32(v, low);
+      low = _mm_or_si128(_mm_and_si128(below, v), _mm_andnot_si128(below, low));
+      const __m128i above = _mm_cmpgt_epi32(v, high);
+      high = _mm_or_si128(_mm_and_si128(above, v), _mm_andnot_si128(above, high));
+    };
+    for (; p + 8 <= n; p += 8) {
+      const __m128i loaded = _mm_loadu_si128(reinterpret_cast<const __m128i*>(words + p));
+      const __m128i bits = _mm_and_si128(_mm_srl_epi16(loaded, shift), mask);
+      const __m128i first = hu(_mm_unpacklo_epi16(bits, zero));
+      const __m128i second = hu(_mm_unpackhi_epi16(bits, zero));
+      track(first);
+      track(second);
+      // Saturated where out of int16, which the range check below refuses.
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(target.hu16 + p), _mm_packs_epi32(first, second));
+    }
+    alignas(16) std::array<std::int32_t, 4> lanes{};
+    _mm_store_si128(reinterpret_cast<__m128i*>(lanes.data()), low);
+    for (std::int32_t v : lanes) lowest = std::min(lowest, v);
+    _mm_store_si128(reinterpret_cast<__m128i*>(lanes.data()), high);
+    for (std::int32_t v : lanes) highest = std::max(highest, v);
+  }
+#endif
+  FrameTarget rest = target;
+  rest.hu16 = target.hu16 + p;
+  write_frame_integral(rest, n - p, mapping,
+                       [&](std::size_t q) { return layout.value(words[p + q]); });
   if (lowest < std::numeric_limits<std::int16_t>::min() ||
       highest > std::numeric_limits<std::int16_t>::max()) {
     throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
@@ -269,8 +339,7 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
       const HuMapping mapping(*target.header);
       const Uint16* frame = words + frame_pixels * target.header->frame;
       if (target.hu16 != nullptr && mapping.integral()) {
-        write_frame_integral(target, frame_pixels, mapping,
-                             [&](std::size_t p) { return layout.value(frame[p]); });
+        write_words_integral(target, frame_pixels, mapping, layout, frame);
         continue;
       }
       write_frame(target, frame_pixels,

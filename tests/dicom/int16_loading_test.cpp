@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 
 #include "ct_writer/ct_writer.h"
@@ -126,6 +127,53 @@ TEST(Int16Loading, SignedIntegerSlopeAndPaddingGiveTheFloatRoutesValues) {
   EXPECT_EQ(loaded.allowed.volume.at(3, 9, 2), -396.0f);   // 2 · (120 − 270 + 2) − 100
   EXPECT_EQ(loaded.allowed.min_hu, loaded.float_only.min_hu);
   EXPECT_EQ(loaded.allowed.max_hu, loaded.float_only.max_hu);
+}
+
+// Slope 1 (decoded eight words at a time where SSE2 is there): stored widths and high bits with
+// bits above the stored ones, signed and unsigned, padding, and values at int16's ends, on
+// frames of 91 pixels (not a multiple of eight): the int16 samples equal the float route's.
+TEST(Int16Loading, SlopeOneLayoutsGiveTheFloatRoutesValues) {
+  struct Case {
+    const char* name;
+    std::uint16_t bits_stored, high_bit, representation;
+    double intercept;
+    std::function<std::int32_t(int, int, int)> stored;  // the whole 16-bit word
+    std::optional<std::int32_t> padding;
+  };
+  const Case cases[] = {
+      {"unsigned12", 12, 11, 0, -1024,
+       [](int i, int j, int k) { return (0xA000 | (37 * i + 301 * j + 7 * k)) & 0xFFFF; },
+       std::nullopt},
+      {"signed12_high13", 12, 13, 1, -1000,
+       [](int i, int j, int k) { return ((((i * 97 - j * 211 + k) & 0xFFF) << 2) | 0x3) & 0xFFFF; },
+       std::nullopt},
+      {"signed16_padding", 16, 15, 1, -24,
+       [](int i, int j, int k) {
+         return i == j ? 0xF830 : ((i * 4099 + j * 271 + k) % 60001 - 30000) & 0xFFFF;
+       },
+       std::int32_t{-2000}},
+      {"unsigned16_to_int16_max", 16, 15, 0, -1024,
+       [](int i, int j, int k) { return i == 12 ? 33791 : 1024 + 3 * i - 5 * j + k; },
+       std::nullopt},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    SeriesLayout l = layout(std::string("int16_slope1_") + c.name);
+    l.columns = 13;
+    l.rows = 7;
+    l.bits_stored = c.bits_stored;
+    l.high_bit = c.high_bit;
+    l.pixel_representation = c.representation;
+    l.rescale_intercept = c.intercept;
+    l.stored_value = c.stored;
+    const Loaded loaded = write_and_load(l, c.name, [&](ct_writer::CtSliceSpec& spec) {
+      spec.pixel_padding_value = c.padding;
+    });
+    EXPECT_TRUE(loaded.allowed.volume.holds_int16());
+    expect_same_values(loaded.allowed.volume, loaded.float_only.volume);
+    EXPECT_EQ(loaded.allowed.min_hu, loaded.float_only.min_hu);
+    EXPECT_EQ(loaded.allowed.max_hu, loaded.float_only.max_hu);
+  }
 }
 
 // Below int16 after an integer rescale: float samples, the same values.

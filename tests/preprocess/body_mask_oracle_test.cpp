@@ -53,6 +53,51 @@ std::vector<float> random_slice(int cols, int rows, std::mt19937& rng) {
   return values;
 }
 
+// The int16 route (whole blocks of 16 compared at once) against the definition, pixel by
+// pixel in float: rows of every length around the block size, runs starting and ending at every
+// position in a block, and thresholds between, on and beyond the samples, the int16 limits and
+// NaN included.
+TEST(RunMask, Int16ThresholdEqualsTheFloatComparison) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> value(-32768, 32767);
+  std::uniform_int_distribution<int> run_length(1, 40);
+  const float thresholds[] = {-200.0f, -200.5f, -199.5f, 0.0f, 40.0f, 32766.5f, 32767.0f,
+                              -32768.0f, -32768.5f, -INFINITY, INFINITY, NAN};
+  for (int trial = 0; trial < 60; ++trial) {
+    SCOPED_TRACE(trial);
+    const int cols = 1 + trial % 37, rows = 1 + trial % 5;
+    std::vector<std::int16_t> samples(static_cast<std::size_t>(cols * rows));
+    // Runs of one value each (below, at or above -200, or anywhere in int16).
+    for (std::size_t p = 0; p < samples.size();) {
+      const int kind = value(rng) & 3;
+      const auto v = static_cast<std::int16_t>(kind == 0   ? -1000
+                                               : kind == 1 ? -200
+                                               : kind == 2 ? 40
+                                                           : value(rng));
+      for (int n = run_length(rng); n > 0 && p < samples.size(); --n) samples[p++] = v;
+    }
+    for (const float t : thresholds) {
+      SCOPED_TRACE(t);
+      const runs::SliceRuns got = runs::threshold_above(samples.data(), cols, rows, t);
+      ASSERT_EQ(got.cols, cols);
+      ASSERT_EQ(got.rows(), rows);
+      std::vector<std::uint8_t> set(samples.size(), 0);
+      for (std::int32_t y = 0; y < rows; ++y) {
+        for (const runs::Run* r = got.row_begin(y); r != got.row_end(y); ++r) {
+          ASSERT_LT(r->begin, r->end);
+          if (r != got.row_begin(y)) {
+            ASSERT_LT((r - 1)->end, r->begin);  // not touching
+          }
+          for (std::int32_t x = r->begin; x < r->end; ++x) set[y * cols + x] = 1;
+        }
+      }
+      for (std::size_t p = 0; p < samples.size(); ++p) {
+        ASSERT_EQ(set[p] == 1, static_cast<float>(samples[p]) > t) << "pixel " << p;
+      }
+    }
+  }
+}
+
 TEST(RunMask, MorphologyEqualsOpenCvWithItsDefaultBorders) {
   std::mt19937 rng(7);
   for (int trial = 0; trial < 40; ++trial) {
