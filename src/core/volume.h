@@ -17,8 +17,6 @@
 #include <utility>
 #include <vector>
 
-#include "core/huge_pages.h"
-
 namespace typemerge::core {
 
 using Vec3 = std::array<double, 3>;
@@ -49,9 +47,11 @@ struct VolumeSize {
 // An allocator whose new elements are left uninitialised (default-initialised), not zeroed:
 // value-initialising a volume is a serial memset that also faults every page in on one thread,
 // where the decoder threads write every sample anyway and fault their own pages in parallel.
-// Large storage is on huge pages (huge_pages.h).
+// On 4 KiB pages, not huge ones (core/huge_pages.h): samples are read slice after slice, so
+// huge pages save no TLB misses, and on virtual machines whose free memory goes back to the
+// host a fresh 2 MiB page cost 3-5 times what its 4 KiB pages did (docs/benchmarks.md).
 template <typename T>
-struct DefaultInitAllocator : detail::HugePageAllocator<T> {
+struct DefaultInitAllocator : std::allocator<T> {
   DefaultInitAllocator() = default;
   template <typename U>
   DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
