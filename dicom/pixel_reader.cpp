@@ -87,22 +87,41 @@ struct HuMapping {
   }
 };
 
-// Writes value(p) for the frame's n pixels into the target's floats or int16 samples. An
-// int16 value is the float's own integer (integer rescale makes every value an integer), so
-// both targets hold the same values; one out of range throws NotInt16.
+// The lowest and highest value a frame was given.
+struct ValueRange {
+  float lowest = std::numeric_limits<float>::infinity();
+  float highest = -std::numeric_limits<float>::infinity();
+  void add(const ValueRange& other) {
+    lowest = std::min(lowest, other.lowest);
+    highest = std::max(highest, other.highest);
+  }
+};
+
+// Writes value(p) for the frame's n pixels into the target's floats or int16 samples and
+// returns their range. An int16 value is the float's own integer (integer rescale makes every
+// value an integer), so both targets hold the same values; one out of range throws NotInt16.
 template <typename Value>
-void write_frame(const FrameTarget& target, std::size_t n, Value&& value) {
+ValueRange write_frame(const FrameTarget& target, std::size_t n, Value&& value) {
+  ValueRange range;
   if (target.hu != nullptr) {
-    for (std::size_t p = 0; p < n; ++p) target.hu[p] = value(p);
-    return;
+    for (std::size_t p = 0; p < n; ++p) {
+      const float v = value(p);
+      target.hu[p] = v;
+      range.lowest = std::min(range.lowest, v);
+      range.highest = std::max(range.highest, v);
+    }
+    return range;
   }
   bool fits = true;
   for (std::size_t p = 0; p < n; ++p) {
     const float v = value(p);
     fits = fits && v >= -32768.0f && v <= 32767.0f && v == std::trunc(v);
     target.hu16[p] = static_cast<std::int16_t>(fits ? v : 0.0f);
+    range.lowest = std::min(range.lowest, v);
+    range.highest = std::max(range.highest, v);
   }
   if (!fits) throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
+  return range;
 }
 
 // write_frame for stored values `stored(p)` under an integral mapping into int16 samples, in
@@ -110,8 +129,8 @@ void write_frame(const FrameTarget& target, std::size_t n, Value&& value) {
 // double arithmetic and per-sample tests (that route was about 10 % of a bone conversion of
 // the abdomen on one thread, perf). Out of int16 throws NotInt16, as write_frame does.
 template <typename Stored>
-void write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapping& mapping,
-                          Stored&& stored) {
+ValueRange write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapping& mapping,
+                                Stored&& stored) {
   const auto slope = static_cast<std::int64_t>(mapping.slope);
   const auto intercept = static_cast<std::int64_t>(mapping.intercept);
   const auto air = static_cast<std::int64_t>(kAirHu);
@@ -131,6 +150,9 @@ void write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapp
       highest > std::numeric_limits<std::int16_t>::max()) {
     throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
   }
+  ValueRange range;
+  if (n > 0) range = {static_cast<float>(lowest), static_cast<float>(highest)};
+  return range;
 }
 
 // write_frame_integral for 16-bit words under slope 1 (nearly every CT series), eight samples
@@ -138,8 +160,9 @@ void write_frame_integral(const FrameTarget& target, std::size_t n, const HuMapp
 // compilers leave the scalar loop scalar (64-bit products, the padding's branch), and it was
 // about 6 % of a bone conversion's CPU on a 300-slice series (perf); other slopes and 8-bit
 // words take the scalar loop.
-void write_words_integral(const FrameTarget& target, std::size_t n, const HuMapping& mapping,
-                          const StoredLayout& layout, const Uint16* words) {
+ValueRange write_words_integral(const FrameTarget& target, std::size_t n,
+                                const HuMapping& mapping, const StoredLayout& layout,
+                                const Uint16* words) {
   std::size_t p = 0;
   std::int32_t lowest = std::numeric_limits<std::int32_t>::max();
   std::int32_t highest = std::numeric_limits<std::int32_t>::min();
@@ -190,12 +213,14 @@ void write_words_integral(const FrameTarget& target, std::size_t n, const HuMapp
 #endif
   FrameTarget rest = target;
   rest.hu16 = target.hu16 + p;
-  write_frame_integral(rest, n - p, mapping,
-                       [&](std::size_t q) { return layout.value(words[p + q]); });
+  ValueRange range = write_frame_integral(
+      rest, n - p, mapping, [&](std::size_t q) { return layout.value(words[p + q]); });
   if (lowest < std::numeric_limits<std::int16_t>::min() ||
       highest > std::numeric_limits<std::int16_t>::max()) {
     throw NotInt16(target.header->path.filename().string() + ": a value outside int16");
   }
+  if (p > 0) range.add({static_cast<float>(lowest), static_cast<float>(highest)});
+  return range;
 }
 
 [[noreturn]] void fail(const SliceHeader& header, const std::string& reason) {
@@ -260,8 +285,8 @@ void check_jpeg_fragments(DcmDataset& dataset, E_TransferSyntax xfer, const Slic
   }
 }
 
-void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
-                   const std::vector<FrameTarget>& targets) {
+ValueRange read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
+                         const std::vector<FrameTarget>& targets) {
   const SliceHeader& header = *targets.front().header;
   DcmElement* element = nullptr;
   if (dataset.findAndGetElement(DCM_PixelData, element).bad() || element == nullptr) {
@@ -278,6 +303,7 @@ void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
     fail(header, "JPEG 2000 data with " + std::to_string(fragments - 1) + " fragments for " +
                      std::to_string(frames) + " frames is not supported");
   }
+  ValueRange range;
   for (const FrameTarget& target : targets) {
     std::vector<std::uint8_t> codestream;
     const unsigned long first = frames == 1 ? 1 : target.header->frame + 1;
@@ -302,12 +328,13 @@ void read_jpeg2000(DcmDataset& dataset, E_TransferSyntax xfer,
                        std::to_string(header.columns) + "x" + std::to_string(header.rows));
     }
     const HuMapping mapping(*target.header);
-    write_frame(target, decoded.samples.size(),
-                [&](std::size_t p) { return mapping.hu(decoded.samples[p]); });
+    range.add(write_frame(target, decoded.samples.size(),
+                          [&](std::size_t p) { return mapping.hu(decoded.samples[p]); }));
   }
+  return range;
 }
 
-void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
+ValueRange read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
   const SliceHeader& header = *targets.front().header;
   // Decoders may rewrite the pixel module (e.g. BitsStored of lossy JPEG): read it afresh.
   Uint16 bits_allocated = header.bits_allocated, bits_stored = header.bits_stored;
@@ -332,6 +359,7 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
     fail(header, "pixel data is " + std::to_string(element->getLength()) + " bytes, expected " +
                      std::to_string(total_pixels * (bits_allocated / 8u)));
   }
+  ValueRange range;
   if (bits_allocated == 16) {
     Uint16* words = nullptr;
     if (element->getUint16Array(words).bad() || words == nullptr) fail(header, "unreadable pixels");
@@ -339,11 +367,11 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
       const HuMapping mapping(*target.header);
       const Uint16* frame = words + frame_pixels * target.header->frame;
       if (target.hu16 != nullptr && mapping.integral()) {
-        write_words_integral(target, frame_pixels, mapping, layout, frame);
+        range.add(write_words_integral(target, frame_pixels, mapping, layout, frame));
         continue;
       }
-      write_frame(target, frame_pixels,
-                  [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
+      range.add(write_frame(target, frame_pixels,
+                            [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); }));
     }
   } else {
     Uint8* bytes = nullptr;
@@ -352,14 +380,15 @@ void read_native(DcmDataset& dataset, const std::vector<FrameTarget>& targets) {
       const HuMapping mapping(*target.header);
       const Uint8* frame = bytes + frame_pixels * target.header->frame;
       if (target.hu16 != nullptr && mapping.integral()) {
-        write_frame_integral(target, frame_pixels, mapping,
-                             [&](std::size_t p) { return layout.value(frame[p]); });
+        range.add(write_frame_integral(target, frame_pixels, mapping,
+                                       [&](std::size_t p) { return layout.value(frame[p]); }));
         continue;
       }
-      write_frame(target, frame_pixels,
-                  [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); });
+      range.add(write_frame(target, frame_pixels,
+                            [&](std::size_t p) { return mapping.hu(layout.value(frame[p])); }));
     }
   }
+  return range;
 }
 
 }  // namespace
@@ -370,8 +399,8 @@ std::string transfer_syntax_name(const std::string& uid) {
   return xfer.getXferName();
 }
 
-void read_frames_hu(const std::vector<FrameTarget>& targets) {
-  if (targets.empty()) return;
+std::pair<float, float> read_frames_hu(const std::vector<FrameTarget>& targets) {
+  if (targets.empty()) return {0.0f, 0.0f};
   register_decoders_once();
   const SliceHeader& header = *targets.front().header;
   // The file may have changed since the scan; the nesting check is cheap, so repeat it.
@@ -384,9 +413,10 @@ void read_frames_hu(const std::vector<FrameTarget>& targets) {
   DcmDataset& dataset = *format.getDataset();
   const E_TransferSyntax xfer = dataset.getOriginalXfer();
   try {
+    ValueRange range;
     if (is_jpeg2000(xfer)) {
-      read_jpeg2000(dataset, xfer, targets);
-      return;
+      range = read_jpeg2000(dataset, xfer, targets);
+      return {range.lowest, range.highest};
     }
     check_jpeg_fragments(dataset, xfer, header);
     const OFCondition decoded = dataset.chooseRepresentation(EXS_LittleEndianExplicit, nullptr);
@@ -394,7 +424,8 @@ void read_frames_hu(const std::vector<FrameTarget>& targets) {
       fail(header, "unsupported transfer syntax " + transfer_syntax_name(header.transfer_syntax_uid) +
                        " (" + decoded.text() + ")");
     }
-    read_native(dataset, targets);
+    range = read_native(dataset, targets);
+    return {range.lowest, range.highest};
   } catch (const std::bad_alloc&) {
     fail(header, "out of memory while decoding");
   }

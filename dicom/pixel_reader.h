@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dicom/slice_header.h"
@@ -37,8 +38,9 @@ class NotInt16 : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-// Throws PixelError naming the file and the reason, or NotInt16.
-void read_frames_hu(const std::vector<FrameTarget>& targets);
+// Decodes every target's frame and returns the lowest and highest value written (0, 0 for no
+// targets). Throws PixelError naming the file and the reason, or NotInt16.
+std::pair<float, float> read_frames_hu(const std::vector<FrameTarget>& targets);
 
 // Name of a transfer syntax for messages ("JPEG 2000 Image Compression (Lossless Only)").
 std::string transfer_syntax_name(const std::string& uid);

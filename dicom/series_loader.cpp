@@ -18,8 +18,9 @@ namespace {
 // Decodes every acquired slice into `stack` (one slice per ordered header), file by file, so
 // a multi-frame file is decoded once; Sample is float or std::int16_t (then NotInt16 is
 // thrown for a value outside it).
-// Returns the lowest and highest value decoded, found by each file's thread while its slices
-// are in cache (a serial std::minmax_element afterwards was a fifth of the loader's time).
+// Returns the lowest and highest value decoded, which the decoder finds as it writes them (a
+// serial std::minmax_element afterwards was a fifth of the loader's time; a second pass per
+// file, 4 % of a bone conversion's CPU under -O2, perf).
 template <typename Sample>
 std::pair<float, float> decode_stack(const SeriesInfo& series, Sample* stack,
                                      std::size_t slice_voxels) {
@@ -42,26 +43,7 @@ std::pair<float, float> decode_stack(const SeriesInfo& series, Sample* stack,
   std::vector<std::pair<float, float>> ranges(files.size());
   tbb::parallel_for(std::size_t{0}, files.size(), [&](std::size_t f) {
     try {
-      read_frames_hu(*files[f]);
-      Sample lowest = std::numeric_limits<Sample>::max();
-      Sample highest = std::numeric_limits<Sample>::lowest();
-      if constexpr (std::is_same_v<Sample, float>) {
-        lowest = std::numeric_limits<float>::infinity();
-        highest = -std::numeric_limits<float>::infinity();
-      }
-      for (const FrameTarget& target : *files[f]) {
-        const Sample* values = nullptr;
-        if constexpr (std::is_same_v<Sample, float>) {
-          values = target.hu;
-        } else {
-          values = target.hu16;
-        }
-        for (std::size_t p = 0; p < slice_voxels; ++p) {
-          lowest = std::min(lowest, values[p]);
-          highest = std::max(highest, values[p]);
-        }
-      }
-      ranges[f] = {static_cast<float>(lowest), static_cast<float>(highest)};
+      ranges[f] = read_frames_hu(*files[f]);
     } catch (const NotInt16&) {
       not_int16[f] = 1;
     } catch (const PixelError& error) {
