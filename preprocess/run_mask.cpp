@@ -102,12 +102,12 @@ SliceRuns all_rows(std::int32_t cols, std::int32_t rows) {
   return out;
 }
 
-// The row's runs of samples above `t` from column x (the state `inside`, a run open since
-// `begin`) to the row's end, one sample at a time.
+// The runs of samples above `t` in columns [x, end) of a row, one sample at a time, carrying
+// the state (`inside`: a run open since `begin`); a run still open at `end` is left open.
 template <typename Sample, typename Threshold>
-void scan_tail(const Sample* row, std::int32_t x, std::int32_t cols, Threshold t, bool& inside,
-               std::int32_t& begin, std::vector<Run>& runs) {
-  for (; x < cols; ++x) {
+void scan_columns(const Sample* row, std::int32_t x, std::int32_t end, Threshold t, bool& inside,
+                  std::int32_t& begin, std::vector<Run>& runs) {
+  for (; x < end; ++x) {
     const bool now = row[x] > t;
     if (now == inside) continue;
     if (now) {
@@ -144,7 +144,7 @@ SliceRuns threshold_above(const float* values, std::int32_t cols, std::int32_t r
         }
       }
       const std::int32_t stop = std::min(cols, x + kBlock);
-      scan_tail(row, x, stop, threshold, inside, begin, out.runs);
+      scan_columns(row, x, stop, threshold, inside, begin, out.runs);
       x = stop;
     }
     if (inside) out.runs.push_back({begin, cols});
@@ -196,7 +196,7 @@ SliceRuns threshold_above(const std::int16_t* values, std::int32_t cols, std::in
       }
     }
 #endif
-    scan_tail(row, x, cols, t, inside, begin, out.runs);
+    scan_columns(row, x, cols, t, inside, begin, out.runs);
     if (inside) out.runs.push_back({begin, cols});
     out.row_start.push_back(static_cast<std::uint32_t>(out.runs.size()));
   }
