@@ -5,10 +5,16 @@
 //  * read_headers never throws (scan_folder calls it without a try: one bad file must never
 //    stop the scan) and never returns frames together with a skip reason;
 //  * an accepted frame has the attributes the geometry and the pixel reader rely on;
-//  * read_frames_hu on accepted frames throws nothing but PixelError;
+//  * read_frames_hu on accepted frames throws nothing but PixelError, and returns the range of
+//    the values it wrote;
+//  * decoded into int16 samples (as the loader does for integer rescale), the frames throw
+//    only PixelError or NotInt16, and when they succeed hold exactly the float route's values
+//    (the int16 decoders are separate code: integers, and SSE2 for slope 1);
 //  * plus everything AddressSanitizer and UndefinedBehaviorSanitizer catch on the way.
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -87,12 +93,46 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     buffers.emplace_back(std::size_t{frame.rows} * frame.columns);
     targets.push_back({&frame, buffers.back().data()});
   }
+  std::pair<float, float> range;
+  try {
+    range = read_frames_hu(targets);
+  } catch (const PixelError&) {
+    return 0;  // a refusal with a message: the expected outcome for a damaged file
+  } catch (...) {
+    violated("read_frames_hu threw something other than PixelError");
+  }
+  float lowest = INFINITY, highest = -INFINITY;
+  for (const std::vector<float>& frame : buffers) {
+    for (const float v : frame) {
+      lowest = std::min(lowest, v);
+      highest = std::max(highest, v);
+    }
+  }
+  if (!(range.first == lowest && range.second == highest)) violated("the range is not the values'");
+
+  // The same frames into int16 samples.
+  std::vector<std::vector<std::int16_t>> samples;
+  samples.reserve(read.frames.size());
+  for (FrameTarget& target : targets) {
+    samples.emplace_back(std::size_t{target.header->rows} * target.header->columns);
+    target.hu = nullptr;
+    target.hu16 = samples.back().data();
+  }
   try {
     read_frames_hu(targets);
   } catch (const PixelError&) {
-    // A refusal with a message: the expected outcome for a damaged file.
+    violated("a file the float route read was refused into int16");
+  } catch (const NotInt16&) {
+    return 0;  // a value outside int16 or not an integer: the loader decodes floats instead
   } catch (...) {
-    violated("read_frames_hu threw something other than PixelError");
+    violated("read_frames_hu into int16 threw something other than PixelError or NotInt16");
+  }
+  for (std::size_t f = 0; f < samples.size(); ++f) {
+    for (std::size_t p = 0; p < samples[f].size(); ++p) {
+      if (static_cast<float>(samples[f][p]) != buffers[f][p]) {
+        violated("an int16 sample differs from the float route's value");
+      }
+    }
   }
   return 0;
 }
