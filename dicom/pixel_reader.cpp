@@ -413,9 +413,8 @@ std::pair<float, float> read_frames_hu(const std::vector<FrameTarget>& targets) 
   DcmDataset& dataset = *format.getDataset();
   const E_TransferSyntax xfer = dataset.getOriginalXfer();
   try {
-    ValueRange range;
     if (is_jpeg2000(xfer)) {
-      range = read_jpeg2000(dataset, xfer, targets);
+      const ValueRange range = read_jpeg2000(dataset, xfer, targets);
       return {range.lowest, range.highest};
     }
     check_jpeg_fragments(dataset, xfer, header);
@@ -424,7 +423,7 @@ std::pair<float, float> read_frames_hu(const std::vector<FrameTarget>& targets) 
       fail(header, "unsupported transfer syntax " + transfer_syntax_name(header.transfer_syntax_uid) +
                        " (" + decoded.text() + ")");
     }
-    range = read_native(dataset, targets);
+    const ValueRange range = read_native(dataset, targets);
     return {range.lowest, range.highest};
   } catch (const std::bad_alloc&) {
     fail(header, "out of memory while decoding");

@@ -192,7 +192,7 @@ SliceRuns threshold_above(const std::int16_t* values, std::int32_t cols, std::in
         }
         inside = !inside;
         // The bits after i that differ from the new side.
-        change = (above ^ (inside ? 0xFFFFu : 0u)) & (0xFFFFu << (i + 1)) & 0xFFFFu;
+        change = (above ^ (inside ? 0xFFFFu : 0u)) & (0xFFFFu << (i + 1));
       }
     }
 #endif
