@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "core/distance_transform.h"
 #include "core/marching_cubes.h"
 #include "core/mesh_distance.h"
+#include "core/ray_parity.h"
 #include "core/union_find.h"
 
 namespace typemerge::core {
@@ -23,7 +25,6 @@ namespace {
 
 using Point = std::array<double, 3>;
 
-Point sub(const Point& a, const Point& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
 Point cross(const Point& a, const Point& b) {
   return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
 }
@@ -97,33 +98,6 @@ void fill_enclosed_outside(std::span<float> d, const VolumeSize& size) {
 
 }  // namespace
 
-namespace detail {
-
-bool point_inside(const TriangleMesh& mesh, const Point& point) {
-  // A fixed, deliberately irrational direction, so rays through edges and vertices of lattice
-  // meshes are unlikely (the one of mesh/components.cpp); Möller–Trumbore per triangle.
-  constexpr Point kDirection = {0.5773502691896258, 0.5612486080160912, 0.5929270612815711};
-  std::size_t crossings = 0;
-  for (const auto& t : mesh.triangles) {
-    const Point p0 = to_point(mesh.positions[t[0]]);
-    const Point e1 = sub(to_point(mesh.positions[t[1]]), p0);
-    const Point e2 = sub(to_point(mesh.positions[t[2]]), p0);
-    const Point h = cross(kDirection, e2);
-    const double det = dot(e1, h);
-    if (det == 0.0) continue;
-    const double inv = 1.0 / det;
-    const Point s = sub(point, p0);
-    const double u = dot(s, h) * inv;
-    if (u < 0.0 || u > 1.0) continue;
-    const Point q = cross(s, e1);
-    const double v = dot(kDirection, q) * inv;
-    if (v < 0.0 || u + v > 1.0) continue;
-    if (dot(e2, q) * inv > 0.0) ++crossings;
-  }
-  return crossings % 2 == 1;
-}
-
-}  // namespace detail
 
 namespace {
 
@@ -373,6 +347,7 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
   TriangleMesh kept;
   std::vector<std::uint32_t> new_index(inner.positions.size(),
                                        std::numeric_limits<std::uint32_t>::max());
+  std::optional<RayParity> outer_parity;  // built when a component is first tested
   for (const auto& component : triangles_of) {
     const double volume = signed_volume(inner, component);  // < 0: a hollow, > 0: an island
     if (volume < 0 && -volume < min_hollow) {
@@ -381,11 +356,12 @@ TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMe
     }
     // Inside the outer surface or not: the walls do not cross, so one vertex decides; three
     // (first, middle, last triangle) vote, against a ray through an edge.
+    if (!outer_parity) outer_parity.emplace(outer);
     int inside = 0;
     for (std::size_t pick : {std::size_t{0}, component.size() / 2, component.size() - 1}) {
-      inside += detail::point_inside(outer, to_point(inner.positions[inner.triangles[component[pick]][0]]))
-                    ? 1
-                    : 0;
+      inside +=
+          outer_parity->inside(to_point(inner.positions[inner.triangles[component[pick]][0]])) ? 1
+                                                                                                : 0;
     }
     if (inside < 2) {
       ++s.dropped_outside;

@@ -83,10 +83,4 @@ struct InnerWallStats {
 TriangleMesh extract_inner_wall(const Volume& field, float iso, const TriangleMesh& outer,
                                 const InnerWallOptions& options, InnerWallStats* stats = nullptr);
 
-namespace detail {
-// Is `point` inside the closed surface `mesh`? The parity of the crossings of a ray along a
-// fixed irrational direction (as mesh/components.cpp does for cavities).
-bool point_inside(const TriangleMesh& mesh, const std::array<double, 3>& point);
-}  // namespace detail
-
 }  // namespace typemerge::core

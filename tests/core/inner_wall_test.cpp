@@ -235,14 +235,5 @@ TEST(InnerWall, ThinPartsStaySolid) {
   EXPECT_EQ(stats.dropped_small, stats.components);
 }
 
-TEST(InnerWall, PointInside) {
-  const Volume volume = balls_volume({20, 20, 20}, {1, 1, 1}, {{{7, 15, 3}, 6}});
-  const TriangleMesh outer = outer_surface(volume);
-  EXPECT_TRUE(detail::point_inside(outer, {7, 15, 3}));
-  EXPECT_TRUE(detail::point_inside(outer, {11.5, 15, 3}));
-  EXPECT_FALSE(detail::point_inside(outer, {13.5, 15, 3}));
-  EXPECT_FALSE(detail::point_inside(outer, {-100, 0, 0}));
-}
-
 }  // namespace
 }  // namespace typemerge::core
