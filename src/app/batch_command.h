@@ -6,6 +6,8 @@
 // an optional JSON-lines event log.
 #pragma once
 
+#include <cstdint>
+#include <filesystem>
 #include <iosfwd>
 #include <string>
 #include <vector>
@@ -46,6 +48,16 @@ inline constexpr int kExitBatchNoneConverted = 6;
 inline constexpr int kExitInterrupted = 130;
 
 void add_batch_command(CLI::App& app, BatchOptions& options);
+
+// The arguments (after the executable) of the `convert` child that converts one study from
+// `input` into `work`/out with a report in `work`/report.json (without the sampled distances
+// to marching cubes' surface, which the summary does not use), on `threads` threads and
+// within `budget` bytes.
+std::vector<std::string> study_convert_arguments(const std::filesystem::path& input,
+                                                 const StudyPlan& plan,
+                                                 const BatchOptions& options,
+                                                 const std::filesystem::path& work,
+                                                 unsigned threads, std::uint64_t budget);
 int run_batch(const BatchOptions& options, std::ostream& log);
 
 }  // namespace typemerge::app

@@ -260,6 +260,12 @@ void add_convert_command(CLI::App& app, ConvertOptions& options) {
                       "value")
       ->check(CLI::Range(0u, 256u));
   command->add_option("--report", options.report, "Write a JSON report of the run");
+  // For batch, whose summary does not use them (hidden: not a user's option).
+  command
+      ->add_flag_callback(
+          "--report-without-distances", [&options] { options.report_distances = false; },
+          "Leave the sampled distances to marching cubes' surface out of the report")
+      ->group("");
   command->add_option("--max-memory", options.max_memory,
                       "Memory bound, e.g. 8G (default: 3/4 of the physical memory): a series "
                       "whose conversion would need more (about 4 bytes a voxel, 6 when its values "
@@ -523,7 +529,7 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   pipeline.check_intersections = options.check_intersections;
   pipeline.hollow_mm = options.hollow_mm;
   pipeline.finish.enabled = options.finish != "none";
-  pipeline.measure_distance = !options.report.empty();
+  pipeline.measure_distance = !options.report.empty() && options.report_distances;
   pipeline.finish.min_component_mm3 = options.min_component_mm3;
   if (options.fill_cavities) pipeline.finish.fill_cavities = true;
   report["parameters"] = {{"algorithm", options.algorithm},

@@ -30,6 +30,7 @@ struct ConvertOptions {
   bool fill_cavities = false;
   bool preview = false;
   std::string report;
+  bool report_distances = true;  // false: the report without the sampled distances (batch's)
   std::string denoise = "none";  // none | gaussian | median | bilateral
   double voxel_size_mm = 0;      // > 0: resample to isotropic voxels of this size
   bool crop_to_tissue = false;

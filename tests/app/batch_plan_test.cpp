@@ -434,4 +434,38 @@ TEST(ChildProcess, ReportsExitCodesSignalsAndOutputWithoutAShell) {
   EXPECT_EQ(result->exit_code, 127);
 }
 
+// A study's convert child: its series, the batch's options, the output and report under its
+// work folder, the report without the sampled distances, its threads and memory limit.
+TEST(BatchChild, ConvertArgumentsAskForTheReportWithoutDistances) {
+  StudyPlan plan;
+  plan.source = StudySource::dicom;
+  plan.series_id = "s1234";
+  plan.output_name = "ward/study";
+  BatchOptions options;
+  options.surface_arguments = {"--preset", "bone"};
+  const fs::path work = fs::path("work") / "abc";
+  const std::vector<std::string> argv =
+      study_convert_arguments("root/ward", plan, options, work, 2, 1u << 30);
+  auto after = [&](const std::string& flag) {
+    const auto it = std::find(argv.begin(), argv.end(), flag);
+    return it == argv.end() || it + 1 == argv.end() ? std::string("(absent)") : *(it + 1);
+  };
+  ASSERT_GE(argv.size(), 2u);
+  EXPECT_EQ(argv[0], "convert");
+  EXPECT_EQ(argv[1], fs::path("root/ward").string());
+  EXPECT_EQ(after("--series"), "s1234");
+  EXPECT_EQ(after("--preset"), "bone");
+  EXPECT_EQ(after("-o"), (work / "out").string());
+  EXPECT_EQ(after("--report"), (work / "report.json").string());
+  EXPECT_EQ(after("--threads"), "2");
+  EXPECT_NE(std::find(argv.begin(), argv.end(), "--report-without-distances"), argv.end());
+  EXPECT_NE(std::find(argv.begin(), argv.end(), "--max-memory=1073741824"), argv.end());
+  // A 3MF batch writes one package named like the study's output folder.
+  options.format = "3mf";
+  EXPECT_EQ(study_convert_arguments("root/ward", plan, options, work, 2, 1u << 30)[
+                static_cast<std::size_t>(
+                    std::find(argv.begin(), argv.end(), "-o") - argv.begin()) + 1],
+            (work / "out" / "study.3mf").string());
+}
+
 }  // namespace

@@ -80,6 +80,20 @@ std::size_t extracted_triangles(const json& surface) {
   return surface["steps"][0]["triangles"].get<std::size_t>();
 }
 
+// Batch's children ask for the report without the sampled distances (its summary does not
+// use them): the surface is the same, the distance entry null.
+TEST(Reduction, ReportWithoutDistancesLeavesOnlyTheDistancesOut) {
+  const json with = convert("--iso 300", "with_distances");
+  const json without = convert("--iso 300 --report-without-distances", "without_distances");
+  ASSERT_FALSE(with.is_null());
+  ASSERT_FALSE(without.is_null());
+  EXPECT_GT(with["distance_to_marching_cubes"]["max_mm"].get<double>(), 0.0);
+  EXPECT_TRUE(without["distance_to_marching_cubes"].is_null());
+  EXPECT_EQ(without["triangles"], with["triangles"]);
+  EXPECT_EQ(without["volume_ml"], with["volume_ml"]);
+  EXPECT_EQ(without["validity"], with["validity"]);
+}
+
 TEST(Reduction, MaxErrorAloneIsTypeMergingAndCollapsesWithinThatBound) {
   const json plain = convert("--iso 300 --finish none", "plain");
   const json bounded = convert("--iso 300 --finish none --max-error 2", "bounded");
