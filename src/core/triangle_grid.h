@@ -3,8 +3,10 @@
 //
 // Cells about two mean edge lengths wide (about two triangles a cell on a surface), at most
 // 1,024 along an axis so a stray far triangle cannot blow the grid up, and at most four cells
-// a triangle over the bounding box; CSR storage, 4 bytes a bucket entry and 4 a cell. A query searches shells of cells outward and stops once no
-// unvisited cell can be nearer than the best triangle found (or than a cap).
+// a triangle over the bounding box; CSR storage, 4 bytes a bucket entry and 4 a cell, and each
+// triangle's bounding box in floats (24 bytes a triangle). A query searches shells of cells
+// outward and stops once no unvisited cell can be nearer than the best triangle found (or than
+// a cap).
 #pragma once
 
 #include <algorithm>
@@ -67,7 +69,16 @@ class TriangleGrid {
     while (cells_at(cell_) > most_cells) cell_ *= 1.25;
     for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo_[a]) / cell_) + 1;
     const std::size_t cells = static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2];
-
+    boxes_.resize(mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+      const auto& a = mesh.positions[mesh.triangles[t][0]];
+      const auto& b = mesh.positions[mesh.triangles[t][1]];
+      const auto& c = mesh.positions[mesh.triangles[t][2]];
+      for (int k = 0; k < 3; ++k) {
+        boxes_[t][k] = std::min({a[k], b[k], c[k]});
+        boxes_[t][k + 3] = std::max({a[k], b[k], c[k]});
+      }
+    }
     start_.assign(cells + 1, 0);
     // Count, prefix sum, fill; the fill advances start_[c + 1] from the beginning of cell c to
     // its end, i.e. to the beginning of cell c + 1, so no second table is needed.
@@ -239,16 +250,14 @@ class TriangleGrid {
       const std::uint32_t t = entries_[i];
       if (stamp[t] == query) continue;
       stamp[t] = query;
+      const std::array<float, 6>& box = boxes_[t];
+      if (box_distance_squared(p, {box[0], box[1], box[2]}, {box[3], box[4], box[5]}) >= best) {
+        continue;
+      }
       const auto& tri = mesh_.triangles[t];
-      const Point3 a = as_point3(mesh_.positions[tri[0]]);
-      const Point3 b = as_point3(mesh_.positions[tri[1]]);
-      const Point3 c = as_point3(mesh_.positions[tri[2]]);
-      const Point3 box_lo = {std::min({a[0], b[0], c[0]}), std::min({a[1], b[1], c[1]}),
-                         std::min({a[2], b[2], c[2]})};
-      const Point3 box_hi = {std::max({a[0], b[0], c[0]}), std::max({a[1], b[1], c[1]}),
-                         std::max({a[2], b[2], c[2]})};
-      if (box_distance_squared(p, box_lo, box_hi) >= best) continue;
-      const double d2 = point_triangle_distance_squared(p, a, b, c);
+      const double d2 = point_triangle_distance_squared(p, as_point3(mesh_.positions[tri[0]]),
+                                                        as_point3(mesh_.positions[tri[1]]),
+                                                        as_point3(mesh_.positions[tri[2]]));
       if (d2 < best) {
         best = d2;
         if (which != nullptr) *which = t;
@@ -263,6 +272,9 @@ class TriangleGrid {
   std::array<int, 3> dims_{};
   std::vector<std::uint32_t> start_;
   std::vector<std::uint32_t> entries_;
+  // Per triangle, its bounding box (lo, hi; floats, as the positions): a query's box test
+  // reads one record instead of three positions.
+  std::vector<std::array<float, 6>> boxes_;
 };
 
 }  // namespace typemerge::core::detail
