@@ -241,7 +241,9 @@ std::vector<SurfaceSpec> surface_specs(const ConvertOptions& options) {
                      false, io::kSurfaceGrey});
   }
   if (specs.empty()) {
-    throw CommandError{kExitUsage, "say what to extract: --preset NAME, --iso HU|auto or --window LO,HI"};
+    throw CommandError{kExitUsage,
+                       "say what to extract: --preset NAME, --iso HU|auto or --window LO,HI, "
+                       "or --labels all for a label map"};
   }
   return specs;
 }
