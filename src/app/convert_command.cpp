@@ -581,7 +581,12 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   std::vector<std::future<SurfaceResult>> pending;
   for (const SurfaceSpec& spec : specs) {
     progress("extracting and finishing " + spec.label);
-    auto make = [&volume, &pipeline, spec] { return make_surface(volume, spec, pipeline); };
+    // One surface: nothing reads the volume after it, so its extraction may release the
+    // slices it has passed (make_surface).
+    core::Volume* releasable = specs.size() == 1 ? &volume : nullptr;
+    auto make = [&volume, &pipeline, spec, releasable] {
+      return make_surface(volume, spec, pipeline, releasable);
+    };
     try {
       pending.push_back(std::async(std::launch::async, make));
     } catch (const std::system_error&) {

@@ -140,7 +140,7 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
 }  // namespace
 
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
-                           const PipelineOptions& options) {
+                           const PipelineOptions& options, core::Volume* releasable) {
   SurfaceResult result;
   core::TriangleMesh marching_cubes;  // for measure_distance, with tm
   core::ExtractOptions extract;
@@ -196,6 +196,10 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       } else {
         core::MergeOptions merge;
         merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
+        if (releasable == &volume && !window && options.hollow_mm == 0 &&
+            !options.measure_distance) {
+          merge.slices_done = [releasable](std::int64_t k) { releasable->release_slices(k); };
+        }
         mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
         if (finish.max_error_mm > 0) {
           result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,

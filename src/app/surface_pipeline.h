@@ -113,7 +113,13 @@ struct SurfaceResult {
   std::vector<std::string> warnings;
 };
 
+// `releasable`: the same volume, given when nothing reads its samples after this surface is
+// made (its caller's last use). Where no later step of this surface reads them either (type
+// merging without a reduction, a window, --hollow or the distance measurement), the
+// extraction returns the volume's slices to the operating system as it passes them
+// (core::MergeOptions::slices_done), so that the volume's memory shrinks as the surface
+// grows; they read as zeros afterwards. The surface is the same either way.
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
-                           const PipelineOptions& options);
+                           const PipelineOptions& options, core::Volume* releasable = nullptr);
 
 }  // namespace typemerge::app

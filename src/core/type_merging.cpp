@@ -274,6 +274,13 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
           detail::reserve_on_huge_pages(out.triangles, ahead(triangles));
         }
         merge::append_piece(out, piece, seam);
+        if (options.slices_done) {
+          // Piece j reads the volume's slices first − pad to last − pad (its cube layers' upper
+          // and lower slices), and one more on each side for gradient normals.
+          const std::int64_t pad = extract.close_borders ? 1 : 0;
+          options.slices_done(i + 1 < count ? std::max<std::int64_t>(0, bounds[i + 1] - pad - 1)
+                                            : volume.size().nz);
+        }
         {
           const std::lock_guard lock(scratch_mutex);
           if (started < count) spent.push_back(std::move(piece.mesh));
@@ -281,6 +288,7 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         total += piece.stats;
         if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
       });
+  if (count == 0 && options.slices_done) options.slices_done(volume.size().nz);
   if (stats != nullptr) *stats = total;
   return out;
 }

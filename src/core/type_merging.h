@@ -99,6 +99,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "core/marching_cubes.h"
@@ -129,6 +130,12 @@ struct MergeOptions {
   unsigned slab_layers = 32;
   // Pieces made at once; 0 = hardware concurrency.
   unsigned threads = 1;
+  // When set, called as the pieces are appended (in order, from one thread at a time) with a
+  // slice index k, never decreasing, the last call with the volume's slice count: from then
+  // on the extraction reads no sample of the slices below k. A holder that needs the volume
+  // no more can release them (Volume::release_slices) so that the volume's memory shrinks
+  // as the surface grows. The output does not depend on it.
+  std::function<void(std::int64_t)> slices_done = nullptr;
 };
 
 struct MergeStats {

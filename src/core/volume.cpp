@@ -2,7 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
+#include <cstdint>
 #include <stdexcept>
+
+#if defined(__linux__)
+#include <sys/mman.h>
+#include <unistd.h>
+#endif
 
 namespace typemerge::core {
 
@@ -71,6 +78,23 @@ bool Volume::to_int16_if_exact() {
   samples_ = Samples{};
   type_ = SampleType::int16;
   return true;
+}
+
+void Volume::release_slices(std::int64_t end) {
+#if defined(__linux__) && defined(MADV_DONTNEED)
+  end = std::clamp<std::int64_t>(end, 0, size_.nz);
+  const auto bytes = static_cast<std::size_t>(size_.nx * size_.ny * end) *
+                     (holds_int16() ? sizeof(std::int16_t) : sizeof(float));
+  std::byte* first = holds_int16() ? reinterpret_cast<std::byte*>(int16_.data())
+                                   : reinterpret_cast<std::byte*>(samples_.data());
+  if (first == nullptr || bytes == 0) return;
+  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
+  const std::uintptr_t from = (reinterpret_cast<std::uintptr_t>(first) + page - 1) & ~(page - 1);
+  const std::uintptr_t to = (reinterpret_cast<std::uintptr_t>(first) + bytes) & ~(page - 1);
+  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
+#else
+  (void)end;
+#endif
 }
 
 void Volume::throw_not_float() {
