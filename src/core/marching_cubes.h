@@ -128,6 +128,10 @@ class SliceBuffers {
  public:
   // At least `bytes` bytes, aligned for any scalar; their contents are unspecified.
   std::byte* reserve(std::size_t bytes);
+  // Returns the block's whole pages to the operating system, keeping the block (the next
+  // use faults them in again, zeroed): for a holder idle between uses, such as a thread
+  // merging the piece it has just extracted. Linux; elsewhere nothing.
+  void release_pages();
 
  private:
   std::unique_ptr<std::byte[]> block_;

@@ -75,7 +75,13 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   detail::SurfacePiece piece =
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
                              expected_vertices, &scratch.surface);
-  if (!scratch.keep) piece.slice_buffers.reset();
+  // The slice buffers (two slices' edge tables) are idle while the piece merges: freed after
+  // the thread's last piece, else their pages returned until its next piece's marching cubes.
+  if (!scratch.keep) {
+    piece.slice_buffers.reset();
+  } else if (piece.slice_buffers) {
+    piece.slice_buffers->release_pages();
+  }
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
