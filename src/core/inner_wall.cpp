@@ -9,14 +9,10 @@
 #include <span>
 #include <vector>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#include <unistd.h>
-#endif
-
 #include "core/distance_transform.h"
 #include "core/marching_cubes.h"
 #include "core/mesh_distance.h"
+#include "core/page_release.h"
 #include "core/ray_parity.h"
 #include "core/union_find.h"
 
@@ -100,20 +96,6 @@ void fill_enclosed_outside(std::span<float> d, const VolumeSize& size) {
 
 
 namespace {
-
-// Returns the whole pages of [begin, end) to the OS (they read as zeros afterwards): slices of
-// the field no later piece reads. Linux: madvise(MADV_DONTNEED); elsewhere nothing.
-void release_pages(const float* begin, const float* end) {
-#if defined(__linux__) && defined(MADV_DONTNEED)
-  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const std::uintptr_t from = (reinterpret_cast<std::uintptr_t>(begin) + page - 1) & ~(page - 1);
-  const std::uintptr_t to = reinterpret_cast<std::uintptr_t>(end) & ~(page - 1);
-  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
-#else
-  (void)begin;
-  (void)end;
-#endif
-}
 
 // What step 3 needs besides the distances.
 struct Band {
@@ -252,7 +234,10 @@ TriangleMesh slab_wall(const Volume& field, float iso, const InnerWallOptions& o
     // Slices below last − 3 are read by no later piece.
     const std::int64_t keep = std::max<std::int64_t>(released, std::min(computed, last - 3));
     if (keep > released) {
-      release_pages(distance.slice(released), distance.slice(0) + keep * plane);
+      detail::release_whole_pages(
+          distance.slice(released),
+          static_cast<std::size_t>(distance.slice(0) + keep * plane - distance.slice(released)) *
+              sizeof(float));
       released = keep;
     }
   }

@@ -29,10 +29,6 @@
 // the edge, which the edge margin moves kEdgeMargin outward: the cap lies on the border.
 #include "core/marching_cubes.h"
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#include <unistd.h>
-#endif
 
 #include <algorithm>
 #include <bit>
@@ -50,6 +46,7 @@
 
 #include "core/cube_tables.h"
 #include "core/huge_pages.h"
+#include "core/page_release.h"
 #include "core/parallel.h"
 
 namespace typemerge::core {
@@ -934,16 +931,7 @@ std::byte* SliceBuffers::reserve(std::size_t bytes) {
   return block_.get();
 }
 
-void SliceBuffers::release_pages() {
-#if defined(__linux__) && defined(MADV_DONTNEED)
-  if (!block_) return;
-  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const auto begin = reinterpret_cast<std::uintptr_t>(block_.get());
-  const std::uintptr_t from = (begin + page - 1) & ~(page - 1);
-  const std::uintptr_t to = (begin + bytes_) & ~(page - 1);
-  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
-#endif
-}
+void SliceBuffers::release_pages() { release_whole_pages(block_.get(), bytes_); }
 
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals,

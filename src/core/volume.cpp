@@ -6,10 +6,7 @@
 #include <cstdint>
 #include <stdexcept>
 
-#if defined(__linux__)
-#include <sys/mman.h>
-#include <unistd.h>
-#endif
+#include "core/page_release.h"
 
 namespace typemerge::core {
 
@@ -81,20 +78,13 @@ bool Volume::to_int16_if_exact() {
 }
 
 void Volume::release_slices(std::int64_t end) {
-#if defined(__linux__) && defined(MADV_DONTNEED)
   end = std::clamp<std::int64_t>(end, 0, size_.nz);
-  const auto bytes = static_cast<std::size_t>(size_.nx * size_.ny * end) *
-                     (holds_int16() ? sizeof(std::int16_t) : sizeof(float));
-  std::byte* first = holds_int16() ? reinterpret_cast<std::byte*>(int16_.data())
-                                   : reinterpret_cast<std::byte*>(samples_.data());
-  if (first == nullptr || bytes == 0) return;
-  const auto page = static_cast<std::uintptr_t>(::sysconf(_SC_PAGESIZE));
-  const std::uintptr_t from = (reinterpret_cast<std::uintptr_t>(first) + page - 1) & ~(page - 1);
-  const std::uintptr_t to = (reinterpret_cast<std::uintptr_t>(first) + bytes) & ~(page - 1);
-  if (to > from) ::madvise(reinterpret_cast<void*>(from), to - from, MADV_DONTNEED);
-#else
-  (void)end;
-#endif
+  const auto samples = static_cast<std::size_t>(size_.nx * size_.ny * end);
+  if (holds_int16()) {
+    detail::release_whole_pages(int16_.data(), samples * sizeof(std::int16_t));
+  } else {
+    detail::release_whole_pages(samples_.data(), samples * sizeof(float));
+  }
 }
 
 void Volume::throw_not_float() {
