@@ -199,6 +199,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         if (releasable == &volume && !window && options.hollow_mm == 0 &&
             !options.measure_distance) {
           merge.slices_done = [releasable](std::int64_t k) { releasable->release_slices(k); };
+          merge.return_idle_pages = true;
         }
         mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
         if (finish.max_error_mm > 0) {

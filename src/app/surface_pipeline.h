@@ -118,7 +118,8 @@ struct SurfaceResult {
 // merging without a reduction, a window, --hollow or the distance measurement), the
 // extraction returns the volume's slices to the operating system as it passes them
 // (core::MergeOptions::slices_done), so that the volume's memory shrinks as the surface
-// grows; they read as zeros afterwards. The surface is the same either way.
+// grows (they read as zeros afterwards), and idle scratch gives its pages back
+// (MergeOptions::return_idle_pages). The surface is the same either way.
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                            const PipelineOptions& options, core::Volume* releasable = nullptr);
 

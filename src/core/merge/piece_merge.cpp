@@ -76,10 +76,11 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
                              expected_vertices, &scratch.surface);
   // The slice buffers (two slices' edge tables) are idle while the piece merges: freed after
-  // the thread's last piece, else their pages returned until its next piece's marching cubes.
+  // the thread's last piece; with return_idle_pages, else their pages returned until the
+  // thread's next piece's marching cubes.
   if (!scratch.keep) {
     piece.slice_buffers.reset();
-  } else if (piece.slice_buffers) {
+  } else if (options.return_idle_pages && piece.slice_buffers) {
     piece.slice_buffers->release_pages();
   }
   MergedPiece out;
