@@ -12,7 +12,8 @@
 //    a sheared grid), within that bound in patient mm; reduced to a triangle count, its count
 //    in the window when said met, the topology kept, within the bound it reports, no
 //    crossings; merged and collapsed within the bound alone, the same;
-//  * threads > 1 give the serial output exactly (extraction and type merging);
+//  * threads > 1 give the serial output exactly (extraction and type merging), and type
+//    merging reads no slice it has reported done (MergeOptions::slices_done);
 //  * no two triangles cross (exact predicates), in marching cubes and in type merging.
 #include <algorithm>
 #include <array>
@@ -143,6 +144,33 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!same(extract_type_merged(volume, iso, options, threaded), tm)) {
       violated("type merging with threads differs from serial");
     }
+  }
+  if (try_threads) {
+    // Slices reported done (MergeOptions::slices_done) are never read again: flipping every
+    // sample of them across the iso value as they are reported changes nothing (one thread,
+    // so that every later piece is made after the flips), with the idle slice buffers' pages
+    // returned.
+    Volume flipped = volume;
+    MergeOptions watched = merge;
+    watched.threads = 1;  // each piece made after the ones before it are appended
+    watched.return_idle_pages = true;
+    std::int64_t done = 0;
+    watched.slices_done = [&](std::int64_t k) {
+      if (k < done || k > volume_size.nz) violated("slices_done out of order or range");
+      for (std::int64_t z = done; z < k; ++z) {
+        for (std::int64_t y = 0; y < volume_size.ny; ++y) {
+          for (std::int64_t x = 0; x < volume_size.nx; ++x) {
+            float& v = flipped.at(x, y, z);
+            v = v >= iso ? iso - 1000.0f : iso + 1000.0f;
+          }
+        }
+      }
+      done = k;
+    };
+    if (!same(extract_type_merged(flipped, iso, options, watched), tm)) {
+      violated("type merging read a slice it had reported done");
+    }
+    if (done != volume_size.nz) violated("slices_done did not end at the slice count");
   }
   const MeshCheck tm_check = check_mesh(tm);
   check_sound(tm_check, close_borders, "type merged");
