@@ -234,10 +234,8 @@ TriangleMesh slab_wall(const Volume& field, float iso, const InnerWallOptions& o
     // Slices below last − 3 are read by no later piece.
     const std::int64_t keep = std::max<std::int64_t>(released, std::min(computed, last - 3));
     if (keep > released) {
-      detail::release_whole_pages(
-          distance.slice(released),
-          static_cast<std::size_t>(distance.slice(0) + keep * plane - distance.slice(released)) *
-              sizeof(float));
+      const auto bytes = static_cast<std::size_t>((keep - released) * plane) * sizeof(float);
+      detail::release_whole_pages(distance.slice(released), bytes);
       released = keep;
     }
   }

@@ -29,7 +29,6 @@
 // the edge, which the edge margin moves kEdgeMargin outward: the cap lies on the border.
 #include "core/marching_cubes.h"
 
-
 #include <algorithm>
 #include <bit>
 #include <cassert>

@@ -31,15 +31,24 @@ inline constexpr double kCellsPerTriangle = 4.0;
 class TriangleGrid {
  public:
   explicit TriangleGrid(const TriangleMesh& mesh) : mesh_(mesh) {
+    // Each triangle's box first; the mesh's box and the buckets are read from them.
+    boxes_.resize(mesh.triangles.size());
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+      const auto& a = mesh.positions[mesh.triangles[t][0]];
+      const auto& b = mesh.positions[mesh.triangles[t][1]];
+      const auto& c = mesh.positions[mesh.triangles[t][2]];
+      for (int k = 0; k < 3; ++k) {
+        boxes_[t][k] = std::min({a[k], b[k], c[k]});
+        boxes_[t][k + 3] = std::max({a[k], b[k], c[k]});
+      }
+    }
     lo_ = {std::numeric_limits<double>::max(), std::numeric_limits<double>::max(),
            std::numeric_limits<double>::max()};
     Point3 hi = {-lo_[0], -lo_[1], -lo_[2]};
-    for (const auto& t : mesh.triangles) {
-      for (auto v : t) {
-        for (int a = 0; a < 3; ++a) {
-          lo_[a] = std::min(lo_[a], double{mesh.positions[v][a]});
-          hi[a] = std::max(hi[a], double{mesh.positions[v][a]});
-        }
+    for (const std::array<float, 6>& box : boxes_) {
+      for (int a = 0; a < 3; ++a) {
+        lo_[a] = std::min(lo_[a], double{box[a]});
+        hi[a] = std::max(hi[a], double{box[a + 3]});
       }
     }
     // Cell edge: about two triangles per cell for a surface (cells ~ area / edge²).
@@ -69,16 +78,6 @@ class TriangleGrid {
     while (cells_at(cell_) > most_cells) cell_ *= 1.25;
     for (int a = 0; a < 3; ++a) dims_[a] = static_cast<int>((hi[a] - lo_[a]) / cell_) + 1;
     const std::size_t cells = static_cast<std::size_t>(dims_[0]) * dims_[1] * dims_[2];
-    boxes_.resize(mesh.triangles.size());
-    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-      const auto& a = mesh.positions[mesh.triangles[t][0]];
-      const auto& b = mesh.positions[mesh.triangles[t][1]];
-      const auto& c = mesh.positions[mesh.triangles[t][2]];
-      for (int k = 0; k < 3; ++k) {
-        boxes_[t][k] = std::min({a[k], b[k], c[k]});
-        boxes_[t][k + 3] = std::max({a[k], b[k], c[k]});
-      }
-    }
     start_.assign(cells + 1, 0);
     // Count, prefix sum, fill; the fill advances start_[c + 1] from the beginning of cell c to
     // its end, i.e. to the beginning of cell c + 1, so no second table is needed.
@@ -204,12 +203,8 @@ class TriangleGrid {
       std::array<int, 3> c0{};
       std::array<int, 3> c1{};
       for (int a = 0; a < 3; ++a) {
-        double mn = std::numeric_limits<double>::max();
-        double mx = -mn;
-        for (auto v : mesh_.triangles[t]) {
-          mn = std::min(mn, double{mesh_.positions[v][a]});
-          mx = std::max(mx, double{mesh_.positions[v][a]});
-        }
+        const double mn = boxes_[t][a];
+        const double mx = boxes_[t][a + 3];
         c0[a] = std::clamp(static_cast<int>((mn - lo_[a]) / cell_), 0, dims_[a] - 1);
         c1[a] = std::clamp(static_cast<int>((mx - lo_[a]) / cell_), 0, dims_[a] - 1);
       }
