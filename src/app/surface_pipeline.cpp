@@ -198,7 +198,9 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
         if (releasable == &volume && !window && options.hollow_mm == 0 &&
             !options.measure_distance) {
-          merge.slices_done = [releasable](std::int64_t k) { releasable->release_slices(k); };
+          merge.slices_done = [releasable](std::int64_t begin, std::int64_t end) {
+            releasable->release_slices(begin, end);
+          };
           merge.return_idle_pages = true;
         }
         mesh = core::extract_type_merged(source, iso, extract, merge, &stats);

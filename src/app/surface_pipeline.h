@@ -116,7 +116,7 @@ struct SurfaceResult {
 // `releasable`: the same volume, given when nothing reads its samples after this surface is
 // made (its caller's last use). Where no later step of this surface reads them either (type
 // merging without a reduction, a window, --hollow or the distance measurement), the
-// extraction returns the volume's slices to the operating system as it passes them
+// extraction returns the volume's slices to the operating system once it has read them
 // (core::MergeOptions::slices_done), so that the volume's memory shrinks as the surface
 // grows (they read as zeros afterwards), and idle scratch gives its pages back
 // (MergeOptions::return_idle_pages). The surface is the same either way.

@@ -12,6 +12,7 @@
 #include <span>
 #include <stdexcept>
 #include <type_traits>
+#include <functional>
 #include <utility>
 #include <vector>
 
@@ -228,6 +229,21 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   std::vector<std::unique_ptr<merge::PieceScratch>> spare;
   std::vector<TriangleMesh> spent;
   std::size_t started = 0;
+  // The volume's slices each piece reads (slices_done): piece i's cube layers [b_i, b_i+1)
+  // read slices b_i − pad to b_i+1 − pad, and one more on each side for gradient normals.
+  // Its own slices, read by no other piece, are reported as soon as it has read them; the
+  // slices below the next piece's first as the pieces are appended, in order, but for those.
+  const std::int64_t pad = extract.close_borders ? 1 : 0;
+  const std::int64_t nz = volume.size().nz;
+  const auto first_read = [&](std::size_t i) {
+    return std::max<std::int64_t>(0, bounds[i] - pad - 1);
+  };
+  const auto own_slices = [&](std::size_t i) {
+    const std::int64_t begin = i == 0 ? 0 : std::min(nz, bounds[i] - pad + 2);
+    const std::int64_t end = i + 1 < count ? first_read(i + 1) : nz;
+    return std::pair{begin, std::max(begin, end)};
+  };
+  std::int64_t reported = 0;  // the slices below, but for later pieces' own, are reported
   const double largest =
       expected_vertices.empty()
           ? -1.0
@@ -252,8 +268,15 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
         scratch->output = std::move(output);
         scratch->keep = i + threads < count;  // else this thread's last piece
+        std::function<void()> reads_done;
+        if (options.slices_done) {
+          reads_done = [&, own = own_slices(i)] {
+            if (own.first < own.second) options.slices_done(own.first, own.second);
+          };
+        }
         merge::MergedPiece piece = merge::merge_piece(volume, iso, extract, options, bounds[i],
-                                                      bounds[i + 1], *scratch, largest);
+                                                      bounds[i + 1], *scratch, largest,
+                                                      reads_done);
         if (scratch->keep) {  // else freed now: the last pieces need no more
           const std::lock_guard lock(scratch_mutex);
           spare.push_back(std::move(scratch));
@@ -275,11 +298,12 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         }
         merge::append_piece(out, piece, seam);
         if (options.slices_done) {
-          // Piece j reads the volume's slices first − pad to last − pad (its cube layers' upper
-          // and lower slices), and one more on each side for gradient normals.
-          const std::int64_t pad = extract.close_borders ? 1 : 0;
-          options.slices_done(i + 1 < count ? std::max<std::int64_t>(0, bounds[i + 1] - pad - 1)
-                                            : volume.size().nz);
+          // Every piece up to i has read what it reads; later pieces read from first_read(i + 1).
+          const std::int64_t end = i + 1 < count ? first_read(i + 1) : nz;
+          const auto [own_begin, own_end] = own_slices(i);
+          const std::int64_t shared_end = own_begin < own_end ? own_begin : end;
+          if (reported < shared_end) options.slices_done(reported, shared_end);
+          reported = std::max(reported, end);
         }
         {
           const std::lock_guard lock(scratch_mutex);
@@ -288,7 +312,7 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         total += piece.stats;
         if (extract.stats != nullptr) *extract.stats += piece.ambiguity;
       });
-  if (count == 0 && options.slices_done) options.slices_done(volume.size().nz);
+  if (count == 0 && options.slices_done && nz > 0) options.slices_done(0, nz);
   if (stats != nullptr) *stats = total;
   return out;
 }

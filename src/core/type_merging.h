@@ -130,12 +130,14 @@ struct MergeOptions {
   unsigned slab_layers = 32;
   // Pieces made at once; 0 = hardware concurrency.
   unsigned threads = 1;
-  // When set, called as the pieces are appended (in order, from one thread at a time) with a
-  // slice index k, never decreasing, the last call with the volume's slice count: from then
-  // on the extraction reads no sample of the slices below k. A holder that needs the volume
-  // no more can release them (Volume::release_slices) so that the volume's memory shrinks
-  // as the surface grows. The output does not depend on it.
-  std::function<void(std::int64_t)> slices_done = nullptr;
+  // When set, called with slice ranges [begin, end) that the extraction reads no more: the
+  // ranges are disjoint and not empty, they cover the volume's slices [0, nz), and each is
+  // reported as soon as every piece that reads it has read it (a piece's own slices right
+  // after its marching cubes, while it merges; the slices two pieces share once both have).
+  // Calls may come from several threads at once. A holder that needs the volume no more can
+  // release them (Volume::release_slices) so that the volume's memory shrinks while the
+  // surface is made. The output does not depend on it.
+  std::function<void(std::int64_t begin, std::int64_t end)> slices_done = nullptr;
   // Memory before speed: a thread's marching-cubes slice buffers (two slices' edge tables,
   // 6 MB for 512 × 512 slices) give their pages back while its piece merges, and fault them
   // in again for its next piece (about 1 % of an extraction's time). The output does not

@@ -77,13 +77,16 @@ bool Volume::to_int16_if_exact() {
   return true;
 }
 
-void Volume::release_slices(std::int64_t end) {
-  end = std::clamp<std::int64_t>(end, 0, size_.nz);
-  const auto samples = static_cast<std::size_t>(size_.nx * size_.ny * end);
+void Volume::release_slices(std::int64_t begin, std::int64_t end) {
+  begin = std::clamp<std::int64_t>(begin, 0, size_.nz);
+  end = std::clamp<std::int64_t>(end, begin, size_.nz);
+  const auto slice = static_cast<std::size_t>(size_.nx * size_.ny);
+  const auto first = slice * static_cast<std::size_t>(begin);
+  const auto samples = slice * static_cast<std::size_t>(end - begin);
   if (holds_int16()) {
-    detail::release_whole_pages(int16_.data(), samples * sizeof(std::int16_t));
+    detail::release_whole_pages(int16_.data() + first, samples * sizeof(std::int16_t));
   } else {
-    detail::release_whole_pages(samples_.data(), samples * sizeof(float));
+    detail::release_whole_pages(samples_.data() + first, samples * sizeof(float));
   }
 }
 

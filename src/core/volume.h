@@ -149,11 +149,12 @@ class Volume {
     return f(static_cast<const float*>(samples_.data()));
   }
 
-  // Returns the memory pages wholly inside slices [0, end) to the operating system, for a
+  // Returns the memory pages wholly inside slices [begin, end) to the operating system, for a
   // holder that reads those slices no more (a conversion's last extraction, as it goes): they
   // read as 0 afterwards, and the process's resident memory shrinks by their size. Linux
-  // (madvise MADV_DONTNEED); elsewhere nothing is released and the samples stay.
-  void release_slices(std::int64_t end);
+  // (madvise MADV_DONTNEED); elsewhere nothing is released and the samples stay. Calls on
+  // disjoint ranges may run at once.
+  void release_slices(std::int64_t begin, std::int64_t end);
 
   // int16 → float storage, in place (the same values); nothing for float storage. Holds
   // both for a moment: 6 bytes a voxel.

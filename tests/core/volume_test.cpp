@@ -179,7 +179,7 @@ TEST(VolumeStorage, ExtractionFromInt16EqualsExtractionFromFloat) {
 }
 
 }  // namespace
-// release_slices: the whole pages of the slices below `end` read as zeros (Linux), the rest keep
+// release_slices: the whole pages of slices [begin, end) read as zeros (Linux), the rest keep
 // their values; out-of-range ends are clamped.
 TEST(Volume, ReleasedSlicesReadAsZerosAndTheOthersStay) {
   for (const bool int16 : {false, true}) {
@@ -194,20 +194,23 @@ TEST(Volume, ReleasedSlicesReadAsZerosAndTheOthersStay) {
       ASSERT_TRUE(volume.to_int16_if_exact());
     }
     const Volume& view = volume;
-    volume.release_slices(-3);  // nothing
+    volume.release_slices(-3, 0);  // nothing
+    volume.release_slices(6, 4);   // nothing
     EXPECT_EQ(view.at(5, 5, 0), 1.0f);
-    volume.release_slices(4);
+    EXPECT_EQ(view.at(5, 5, 5), 6.0f);
+    volume.release_slices(4, 8);
 #if defined(__linux__)
-    // Slices of 16 or 32 KiB: slices 1 to 3 lie on whole pages wherever the samples start.
-    for (std::int64_t k = 1; k < 4; ++k) EXPECT_EQ(view.at(7, 30, k), 0.0f) << k;
+    // Slices of 16 or 32 KiB: slices 5 and 6 lie on whole pages wherever the samples start.
+    for (std::int64_t k = 5; k < 7; ++k) EXPECT_EQ(view.at(7, 30, k), 0.0f) << k;
 #endif
-    for (std::int64_t k = 4; k < 10; ++k) {
+    for (std::int64_t k : {0, 1, 2, 3, 8, 9}) {
       EXPECT_EQ(view.at(0, 0, k), static_cast<float>(k + 1)) << k;
       EXPECT_EQ(view.at(127, 63, k), static_cast<float>(k + 1)) << k;
     }
-    volume.release_slices(1000);  // clamped to every slice
+    volume.release_slices(-5, 1000);  // clamped to every slice
 #if defined(__linux__)
     EXPECT_EQ(view.at(64, 32, 9), 0.0f);
+    EXPECT_EQ(view.at(64, 32, 1), 0.0f);
 #endif
   }
 }

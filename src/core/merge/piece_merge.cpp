@@ -70,7 +70,8 @@ void PieceScratch::release_merge_arrays() {
 
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last,
-                        PieceScratch& scratch, double expected_vertices) {
+                        PieceScratch& scratch, double expected_vertices,
+                        const std::function<void()>& reads_done) {
   const bool normals = extract.vertex_normals;
   detail::SurfacePiece piece =
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
@@ -83,6 +84,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   } else if (options.return_idle_pages && piece.slice_buffers) {
     piece.slice_buffers->release_pages();
   }
+  if (reads_done && !normals) reads_done();
   MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
@@ -146,6 +148,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
     if (new_id[v] == kNone) throw std::logic_error("type merging dropped a seam vertex");
     out.top.push_back(new_id[v]);
   }
+  if (reads_done && normals) reads_done();
   out.stats.triangles_after = out.mesh.triangles.size();
   out.stats.vertices_after = out.mesh.positions.size() - out.shared;
   scratch.surface = std::move(piece);
