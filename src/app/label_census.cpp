@@ -1,6 +1,7 @@
 #include "app/label_census.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <vector>
 
 namespace typemerge::app {
@@ -49,10 +50,30 @@ std::map<std::int32_t, LabelExtent> census_of(const Sample* samples, const core:
   return census;
 }
 
+template <typename Sample>
+double coherence_of(const Sample* samples, const core::VolumeSize& size) {
+  std::uint64_t counted = 0;
+  std::uint64_t same = 0;
+  for (std::int64_t r = 0; r < size.ny * size.nz; ++r) {
+    const Sample* row = samples + r * size.nx;
+    for (std::int64_t i = 0; i + 1 < size.nx; ++i) {
+      if (row[i] > 0) {
+        ++counted;
+        if (row[i + 1] == row[i]) ++same;
+      }
+    }
+  }
+  return counted == 0 ? 1.0 : static_cast<double>(same) / static_cast<double>(counted);
+}
+
 }  // namespace
 
 std::map<std::int32_t, LabelExtent> label_census(const core::Volume& layer) {
   return layer.visit([&](const auto* samples) { return census_of(samples, layer.size()); });
+}
+
+double label_coherence(const core::Volume& layer) {
+  return layer.visit([&](const auto* samples) { return coherence_of(samples, layer.size()); });
 }
 
 }  // namespace typemerge::app

@@ -33,6 +33,13 @@ namespace fs = std::filesystem;
 using nlohmann::ordered_json;
 using Clock = std::chrono::steady_clock;
 
+// A map that does not say it holds labels, converted with every label, must look like it:
+// with more than kManyLabels values, at least kMinLabelCoherence of its labelled voxels have
+// their own value beside them (label_coherence). Labels w voxels across give about
+// (w − 1) / w, so even two-voxel-thin structures give 0.5; grey values little (an MR: 0.05).
+constexpr std::size_t kManyLabels = 64;
+constexpr double kMinLabelCoherence = 0.25;
+
 double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
@@ -236,6 +243,21 @@ int run_label_convert(const ConvertOptions& options, std::ostream& log) {
   // Labels and boxes, one pass per layer; the file's segments, else every label present.
   std::vector<std::map<std::int32_t, LabelExtent>> census;
   for (const core::Volume& layer : content.layers) census.push_back(label_census(layer));
+  // An image of grey values (an MR, a CT) read as labels would give a surface for every grey
+  // value, after minutes: refused at once where many values change from voxel to voxel,
+  // unless the file says it holds labels or the labels are named.
+  if (!selection && !shape.segmentation && census.front().size() > kManyLabels) {
+    const double coherence = label_coherence(content.layers.front());
+    if (coherence < kMinLabelCoherence) {
+      throw CommandError{
+          kExitInputRefused,
+          "this map does not look like labels: " + std::to_string(census.front().size()) +
+              " values, and " + std::to_string(static_cast<int>(std::lround(coherence * 100))) +
+              " % of its voxels above 0 have the same value beside them (most, in a label "
+              "map): an image of grey values? Extract a surface with --iso VALUE, or name the "
+              "labels to convert: --labels N[,N...]"};
+    }
+  }
   if (content.segments.empty()) {
     for (const auto& [label, extent] : census.front()) {
       content.segments.push_back({label, 0, "", std::nullopt});

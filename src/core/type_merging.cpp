@@ -5,6 +5,7 @@
 #include <cassert>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -12,7 +13,6 @@
 #include <span>
 #include <stdexcept>
 #include <type_traits>
-#include <functional>
 #include <utility>
 #include <vector>
 

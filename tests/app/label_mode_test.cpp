@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -19,8 +20,10 @@
 
 #include "app/cli_runner.h"
 #include "app/exit_codes.h"
-#include "app/label_names.h"
+#include "app/input_kind.h"
 #include "app/label_census.h"
+#include "app/label_names.h"
+#include "app/volume_file_input.h"
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
 #include "core/self_intersections.h"
@@ -355,6 +358,56 @@ TEST_F(LabelModeTest, RefusalsAndInfo) {
   EXPECT_NEAR(doc["labels"][3]["volume_ml"].get<double>(), 0.9 * 0.9 * 1.2 / 1000, 1e-9);
 }
 
+// Grey values given to label mode as "every label" (an MR's integers, no label intent) are
+// refused at once, before any surface, with the way out named; the same map converts with its
+// labels named, or when the file says it holds labels.
+TEST_F(LabelModeTest, GreyValuesAreRefusedAsEveryLabelUnlessNamedOrDeclared) {
+  test::NiftiSpec grey = scene_nifti();
+  grey.intent_code = 0;
+  std::fill(grey.values.begin(), grey.values.end(), 0.0);
+  std::uint32_t state = 11;
+  for (int k = 10; k < 22; ++k) {
+    for (int j = 10; j < 22; ++j) {
+      for (int i = 10; i < 22; ++i) {
+        state = state * 1664525u + 1013904223u;
+        // 120 grey levels in a 12-voxel cube
+        grey.values[static_cast<std::size_t>(i + kN * (j + kN * k))] = 1 + (state >> 16) % 120;
+      }
+    }
+  }
+  test::write_nifti(dir_ / "grey.nii", grey);
+  auto run = run_cli("convert " + (dir_ / "grey.nii").string() + " --labels all -o " +
+                     (dir_ / "g.3mf").string());
+  EXPECT_EQ(run.exit_code, kExitInputRefused);
+  EXPECT_NE(run.err.find("does not look like labels: 120 values"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("--iso"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir_ / "g.3mf"));
+  run = run_cli("convert " + (dir_ / "grey.nii").string() + " --labels 7,8 -o " +
+                (dir_ / "named.3mf").string());
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(fs::exists(dir_ / "named.3mf"));
+  grey.intent_code = 1002;  // NIFTI_INTENT_LABEL
+  test::write_nifti(dir_ / "declared.nii", grey);
+  run = run_cli("convert " + (dir_ / "declared.nii").string() + " --labels all -o " +
+                (dir_ / "declared.3mf").string());
+  EXPECT_EQ(run.exit_code, 0) << run.err;
+  EXPECT_TRUE(fs::exists(dir_ / "declared.3mf"));
+}
+
+// label_coherence: the share of labelled voxels whose next voxel in the row has their label.
+TEST(LabelCoherence, CountsEqualNeighboursAlongRows) {
+  for (const bool int16 : {false, true}) {
+    core::Volume layer({8, 2, 1}, core::IndexToPatient{});
+    const float row[8] = {1, 1, 1, 1, 2, 2, 0, 3};  // the last voxel has no next: not counted
+    for (int i = 0; i < 8; ++i) layer.at(i, 0, 0) = row[i];
+    if (int16) {
+      ASSERT_TRUE(layer.to_int16_if_exact());
+    }
+    EXPECT_DOUBLE_EQ(label_coherence(layer), 4.0 / 6.0) << int16;
+  }
+  EXPECT_EQ(label_coherence(core::Volume({3, 3, 3}, core::IndexToPatient{})), 1.0);
+}
+
 TEST_F(LabelModeTest, GreyNiftiConvertsWithIsoAndVolume) {
   test::NiftiSpec grey = scene_nifti();
   grey.datatype = test::kDtFloat32;
@@ -457,6 +510,34 @@ TEST(LabelModeRealData, SlicerLabelMapTwoLabels) {
     const double voxel_ml = report["labels"][o]["voxel_volume_ml"].get<double>();
     EXPECT_NEAR(core::check_mesh(mesh).volume / 1000.0, voxel_ml, 0.06 * voxel_ml);
   }
+  fs::remove_all(dir);
+}
+
+// The premise of the grey-value refusal on real files: Slicer's label maps have most labelled
+// voxels beside their own label, a brain MR's grey values few; the MR with --labels all is
+// refused at once (it made 254 surfaces in 30 s before).
+TEST(LabelModeRealData, GreyMrRefusedAsEveryLabelAndLabelMapsCoherent) {
+  TYPEMERGE_REQUIRE_REAL_DATA(data);
+  const fs::path mr = data / "nifti" / "bet.nii.gz";
+  if (!fs::exists(mr)) GTEST_SKIP() << mr << " absent";
+  for (const char* name : {"liver_seg.nrrd", "heart_seg.nrrd", "liver_spine_seg.nrrd"}) {
+    const fs::path map = data / "seg" / "dcmqi" / name;
+    if (!fs::exists(map)) continue;
+    const VolumeFile file = read_volume_file(map, input_kind(map));
+    const double coherence = label_coherence(file.content.layers.front());
+    std::printf("  %s: %.3f of labelled voxels beside their own label\n", name, coherence);
+    EXPECT_GE(coherence, 0.8) << name;
+  }
+  const VolumeFile grey = read_volume_file(mr, input_kind(mr));
+  const double coherence = label_coherence(grey.content.layers.front());
+  std::printf("  bet.nii.gz: %.3f\n", coherence);
+  EXPECT_LT(coherence, 0.1);
+  const fs::path dir = test::fresh_dir("grey_labels_real");
+  const auto run = run_cli("convert " + mr.string() + " --labels all -o " +
+                           (dir / "bet.3mf").string());
+  EXPECT_EQ(run.exit_code, kExitInputRefused);
+  EXPECT_NE(run.err.find("does not look like labels: 254 values"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "bet.3mf"));
   fs::remove_all(dir);
 }
 
