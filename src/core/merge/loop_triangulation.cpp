@@ -79,15 +79,19 @@ bool LoopTriangulator::star_shaped_from_centroid() const {
   const std::array<double, 2> first = from_c(flat_[0]);
   std::array<double, 2> a = first;
   std::size_t crossings = 0;  // edges crossing the horizontal line through c upward
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::array<double, 2> b = i + 1 == n ? first : from_c(flat_[i + 1]);
+  // Counter-clockwise about c, an upward edge crosses that line right of c: the ray's
+  // crossings are the loop's winding number about c. Counted without a branch (whether an
+  // edge crosses was a third mispredicted), the last edge after the loop.
+  const auto edge_turns_and_counts = [&](const std::array<double, 2>& b) {
     if (!(a[0] * b[1] - a[1] * b[0] > 0.0)) return false;
-    // Counter-clockwise about c, an upward edge crosses that line right of c: the ray's
-    // crossings are the loop's winding number about c.
-    if (a[1] < 0.0 && b[1] >= 0.0) ++crossings;
+    crossings += static_cast<std::size_t>((a[1] < 0.0) & (b[1] >= 0.0));
     a = b;
+    return true;
+  };
+  for (std::size_t i = 1; i < n; ++i) {
+    if (!edge_turns_and_counts(from_c(flat_[i]))) return false;
   }
-  return crossings == 1;
+  return edge_turns_and_counts(first) && crossings == 1;
 }
 
 // Counter-clockwise, and no two edges of the projected loop meet except consecutive ones
