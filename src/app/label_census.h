@@ -25,8 +25,8 @@ std::map<std::int32_t, LabelExtent> label_census(const core::Volume& layer);
 
 // The share of labelled voxels (> 0) whose next voxel along x, in the same row, holds the same
 // label (a row's last voxel is not counted); 1 when none is counted. A label map's regions are
-// mostly uniform, so most of its voxels count (0.8 and more on organ maps); grey values of an
-// image read as labels change from voxel to voxel (an MR's: about a tenth).
+// mostly uniform, so most of its voxels count (Slicer's organ maps in the shared data: 0.99);
+// grey values of an image read as labels change from voxel to voxel (a brain MR's: 0.05).
 double label_coherence(const core::Volume& layer);
 
 }  // namespace typemerge::app
