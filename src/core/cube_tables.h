@@ -194,6 +194,7 @@ inline constexpr std::uint8_t kFirstCentroid = 12;
 struct CubeCase {
   std::uint8_t triangle_count = 0;
   std::uint8_t centroid_count = 0;
+  std::uint8_t loop_count = 0;  // the loops (one connected piece each)
   // Edges whose surface vertices are averaged into centre vertex k (bit e = edge e).
   std::array<std::uint16_t, kMaxCaseCentroids> centroid_edges{};
   // Local vertex ids, wound so that the right-hand rule points from inside to outside.
@@ -260,6 +261,7 @@ constexpr CubeCase triangulate_cube(unsigned index, unsigned joined_faces) {
   unsigned visited = 0;
   for (int start = 0; start < kCubeEdgeCount; ++start) {
     if (next[start] < 0 || ((visited >> start) & 1u) != 0) continue;
+    ++result.loop_count;
     int loop[kCubeEdgeCount] = {};
     int n = 0;
     for (int e = start; ((visited >> e) & 1u) == 0; e = next[e]) {
@@ -437,6 +439,9 @@ static_assert(kCubeEdgeLattice[11].axis == 2 && kCubeEdgeLattice[11].offset[0] =
 static_assert(kCubeAmbiguousFaces[0] == 0 && kCubeAmbiguousFaces[255] == 0);
 // Case 13 (inside corners v0, v2, v5, v7): all six faces ambiguous.
 static_assert(kCubeAmbiguousFaces[0b10100101] == 0x3F);
+// One corner inside: one loop; two opposite corners (v0, v6: case 4): two loops.
+static_assert(kConsistentCases.cases[kConsistentCases.first[1]].loop_count == 1);
+static_assert(kConsistentCases.cases[kConsistentCases.first[0b01000001]].loop_count == 2);
 // The classic table equals the consistent table on every unambiguous cube.
 static_assert(kClassicCases.cases[1] == kConsistentCases.cases[kConsistentCases.first[1]]);
 

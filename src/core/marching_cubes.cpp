@@ -657,20 +657,21 @@ class Extractor {
            x = next_boundary_code(codes, x + 1, end)) {
         const Index i = x + width_ * y;
         const unsigned c = codes[x];
+        const auto first_triangle = static_cast<std::uint32_t>(mesh_.triangles.size());
+        const unsigned loops = add_cube(c, i, ids, lower, upper);
         if (options_.cubes != nullptr) {
           cubes_.push_back({static_cast<std::int32_t>(x - pad_),
-                                     static_cast<std::int32_t>(y - pad_),
-                                     static_cast<std::int32_t>(layer - pad_),
-                                     static_cast<std::uint8_t>(c),
-                                     static_cast<std::uint32_t>(mesh_.triangles.size())});
+                            static_cast<std::int32_t>(y - pad_),
+                            static_cast<std::int32_t>(layer - pad_), static_cast<std::uint8_t>(c),
+                            static_cast<std::uint8_t>(loops), first_triangle});
         }
-        add_cube(c, i, ids, lower, upper);
       }
     }
   }
 
-  void add_cube(unsigned c, Index i, const std::array<const VertexId*, 5>& ids, const Slice& lower,
-                const Slice& upper) {
+  // Triangulates cube index c at row position i; returns its loop count.
+  unsigned add_cube(unsigned c, Index i, const std::array<const VertexId*, 5>& ids,
+                    const Slice& lower, const Slice& upper) {
     unsigned entry = first_[c];
     const unsigned decided = decided_faces_[c];
     const unsigned ambiguous = kCubeAmbiguousFaces[c];
@@ -697,6 +698,7 @@ class Extractor {
       const auto& tri = cube_case.triangles[t];
       mesh_.triangles.push_back({local[tri[0]], local[tri[1]], local[tri[2]]});
     }
+    return cube_case.loop_count;
   }
 
   // Decisions on the faces in `faces` (a subset of c's ambiguous faces), packed in face order:

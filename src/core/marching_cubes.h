@@ -55,6 +55,7 @@ struct BoundaryCube {
   std::int32_t y = 0;
   std::int32_t z = 0;
   std::uint8_t index = 0;            // cube index, bit i = vertex vi inside
+  std::uint8_t loops = 0;            // its surface's loops (connected pieces in the cube)
   std::uint32_t first_triangle = 0;  // its triangles run up to the next cube's first_triangle
 };
 

@@ -316,6 +316,43 @@ TEST(MarchingCubes, NoiseIsWatertightAndManifold) {
   EXPECT_GT(centroids, 0u);           // and the centre-vertex fallback
 }
 
+// A recorded cube's loop count is the number of connected pieces its triangles form (type
+// merging trusts a count of one to skip its union-find), with every face decision.
+TEST(MarchingCubes, EachRecordedCubeCountsTheLoopsItsTrianglesForm) {
+  std::array<std::size_t, 5> cubes_by_loops{};
+  for (unsigned seed = 0; seed < 20; ++seed) {
+    const Volume volume = noise_volume(12, 12, 12, seed);
+    std::vector<BoundaryCube> cubes;
+    ExtractOptions options = kClosed;
+    options.cubes = &cubes;
+    const TriangleMesh mesh = extract_isosurface(volume, 0.5f, options);
+    for (std::size_t k = 0; k < cubes.size(); ++k) {
+      const std::uint32_t end =
+          k + 1 < cubes.size() ? cubes[k + 1].first_triangle
+                               : static_cast<std::uint32_t>(mesh.triangles.size());
+      std::map<std::uint32_t, std::uint32_t> parent;
+      auto find = [&parent](std::uint32_t v) {
+        while (parent.at(v) != v) v = parent.at(v);
+        return v;
+      };
+      for (std::uint32_t t = cubes[k].first_triangle; t < end; ++t) {
+        for (std::uint32_t v : mesh.triangles[t]) parent.emplace(v, v);
+        const std::uint32_t root = find(mesh.triangles[t][0]);
+        parent[find(mesh.triangles[t][1])] = root;
+        parent[find(mesh.triangles[t][2])] = root;
+      }
+      std::size_t pieces = 0;
+      for (const auto& [v, p] : parent) pieces += v == p ? 1 : 0;
+      ASSERT_EQ(cubes[k].loops, pieces) << "seed " << seed << ", cube index "
+                                        << int{cubes[k].index};
+      ++cubes_by_loops[std::min<std::size_t>(pieces, 4)];
+    }
+  }
+  EXPECT_GT(cubes_by_loops[1], 1000u);
+  EXPECT_GT(cubes_by_loops[2], 100u);  // noise has cubes of several loops, too
+  EXPECT_EQ(cubes_by_loops[0], 0u);
+}
+
 TEST(MarchingCubes, NoiseMatchesTheSlowReference) {
   for (unsigned seed = 0; seed < 10; ++seed) {
     SCOPED_TRACE(testing::Message() << "seed " << seed);
@@ -623,6 +660,7 @@ void expect_same_records(const std::vector<BoundaryCube>& cubes, const Ambiguity
     EXPECT_EQ(cubes[k].y, expected_cubes[k].y);
     EXPECT_EQ(cubes[k].z, expected_cubes[k].z);
     EXPECT_EQ(cubes[k].index, expected_cubes[k].index);
+    EXPECT_EQ(cubes[k].loops, expected_cubes[k].loops);
     EXPECT_EQ(cubes[k].first_triangle, expected_cubes[k].first_triangle);
   }
   EXPECT_EQ(stats.boundary_cubes, expected_stats.boundary_cubes);

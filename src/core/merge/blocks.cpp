@@ -4,6 +4,8 @@
 #include <cmath>
 #include <utility>
 
+#include "core/cube_tables.h"
+
 namespace typemerge::core::merge {
 
 Dims block_dims(const IndexToPatient& geometry, const MergeOptions& options) {
@@ -30,6 +32,54 @@ Dims children_of(const Dims& dims, const std::array<double, 3>& spacing) {
 }
 
 namespace {
+
+// Bits of a cube index on face f (kCubeFaceVertices).
+constexpr std::array<std::uint8_t, kCubeFaceCount> kFaceCorners = [] {
+  std::array<std::uint8_t, kCubeFaceCount> table{};
+  for (int f = 0; f < kCubeFaceCount; ++f) {
+    for (int v : kCubeFaceVertices[f]) table[f] = static_cast<std::uint8_t>(table[f] | (1u << v));
+  }
+  return table;
+}();
+
+// Whether the marching-cubes surface of `cubes` (a box at most two cubes along each axis) is
+// one connected piece, from the cubes alone: each cube's surface is one loop, and the cubes
+// are joined through the faces the surface crosses (two cubes share the vertices on the edges
+// it cuts there; cubes around a cut edge inside the box are joined so through each other).
+// False when it is several pieces, or a cube holds several loops (then nothing is known).
+bool one_connected_surface(std::span<const BoundaryCube> all, std::span<const std::uint32_t> cubes,
+                           const Box& box) {
+  std::array<std::uint8_t, 8> index{};  // by slot x + 2y + 4z within the box
+  unsigned present = 0;
+  for (std::uint32_t c : cubes) {
+    const BoundaryCube& cube = all[c];
+    if (cube.loops != 1) return false;
+    const unsigned slot = static_cast<unsigned>(cube.x - box.lo[0]) |
+                          static_cast<unsigned>(cube.y - box.lo[1]) << 1u |
+                          static_cast<unsigned>(cube.z - box.lo[2]) << 2u;
+    if (slot > 7) return false;
+    index[slot] = cube.index;
+    present |= 1u << slot;
+  }
+  unsigned reached = present & (~present + 1u);  // the lowest cube
+  for (unsigned before = 0; reached != before;) {
+    before = reached;
+    for (unsigned slot = 0; slot < 8; ++slot) {
+      if (((present >> slot) & 1u) == 0) continue;
+      for (int axis = 0; axis < 3; ++axis) {
+        const unsigned bit = 1u << axis;
+        if ((slot & bit) != 0 || ((present >> (slot | bit)) & 1u) == 0) continue;
+        // The low cube's high face along `axis`: crossed when its corners are mixed.
+        const unsigned corners = index[slot] & kFaceCorners[2 * axis + 1];
+        if (corners == 0 || corners == kFaceCorners[2 * axis + 1]) continue;
+        if (((reached >> slot) & 1u) != 0 || ((reached >> (slot | bit)) & 1u) != 0) {
+          reached |= 1u << slot | 1u << (slot | bit);
+        }
+      }
+    }
+  }
+  return reached == present;
+}
 
 // The pass over one piece: the scratch its recursion reuses, and where it writes.
 class BlockPass {
@@ -249,7 +299,11 @@ bool BlockPass::try_merge(std::span<const std::uint32_t> cubes, const Box& box,
     runs_.push_back(piece_.triangles_of(cube));
     triangles += runs_.back().end - runs_.back().first;
   }
-  const bool all = test_.test_triangles(runs_, box, stats_);
+  // A box of one connected piece (most) is tested without a union-find, and rejected before
+  // its vertices are numbered when it is not flat (most that fail).
+  const bool all = one_connected_surface(piece_.cubes, cubes, box)
+                       ? test_.test_one_piece(runs_, box, stats_)
+                       : test_.test_triangles(runs_, box, stats_);
   stats_.tested_triangles += triangles;
   if (!all) stats_.tested_triangles_failed += triangles;
   if (all || emit_failures) test_.record(box, size, store_, kept_);

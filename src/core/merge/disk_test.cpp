@@ -173,6 +173,101 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
   return all;
 }
 
+bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
+                              MergeStats& stats) {
+  runs_ = runs;
+  components_.clear();
+  local_triangles_.clear();
+  // The area vectors and their sum in test_triangles' order (the same normal, bit for bit),
+  // from the piece's positions (the table holds the same doubles).
+  Component c;
+  for (const TriangleRun& run : runs) {
+    for (std::uint32_t id = run.first; id < run.end; ++id) {
+      const Triangle& t = triangles_[id];
+      LocalTriangle local;
+      local.id = id;
+      const P3 p0 = to_double(positions_[t[0]]);
+      local.area = cross(sub(to_double(positions_[t[1]]), p0), sub(to_double(positions_[t[2]]), p0));
+      for (int a = 0; a < 3; ++a) c.normal[a] += local.area[a];
+      local_triangles_.push_back(local);
+    }
+  }
+  // Facing and flatness as test_triangles judges them; a box failing either fails whatever
+  // its topology, so the verdict is the same (the reason counted may differ).
+  pinched_ = true;
+  c.area = c.normal;
+  const double length = std::sqrt(dot(c.normal, c.normal));
+  if (!(length > 0.0)) {
+    ++stats.rejected_facing;
+    return false;
+  }
+  for (double& x : c.normal) x /= length;
+  for (const LocalTriangle& t : local_triangles_) {
+    if (!(dot(t.area, c.normal) > 0.0)) {
+      ++stats.rejected_facing;
+      return false;
+    }
+  }
+  // Over every corner, each vertex as often as it is one: the same extremes as over the
+  // vertices.
+  for (const LocalTriangle& t : local_triangles_) {
+    for (VertexId v : triangles_[t.id]) {
+      const double h = dot(to_double(positions_[v]), c.normal);
+      c.low = std::min(c.low, h);
+      c.high = std::max(c.high, h);
+    }
+  }
+  if (tolerance_.span(c.high - c.low, c.normal) > tolerance_.epsilon()) {
+    ++stats.rejected_flatness;
+    return false;
+  }
+  // Its vertices and loop edges, as test_triangles numbers them.
+  const FaceTest faces(box);
+  table_.start(3 * local_triangles_.size());
+  for (LocalTriangle& local : local_triangles_) {
+    const Triangle& t = triangles_[local.id];
+    for (int k = 0; k < 3; ++k) local.corner[k] = table_.add(t[k], faces);
+    bool pinched = false;
+    for (int k = 0; k < 3; ++k) {
+      const std::uint32_t a = local.corner[k];
+      const std::uint32_t b = local.corner[k == 2 ? 0 : k + 1];
+      const bool on_face = (table_.mask(a) & table_.mask(b)) != 0;
+      const std::uint32_t next = table_.next(a);
+      pinched |= on_face & (next != kNone);
+      table_.set_next(a, on_face ? b : next);
+    }
+    if (pinched) {
+      ++stats.rejected_topology;
+      return false;
+    }
+  }
+  pinched_ = false;
+  c.faces = local_triangles_.size();
+  c.vertices = table_.count();
+  for (std::uint32_t v = 0; v < table_.count(); ++v) {
+    if (table_.next(v) != kNone) {
+      ++c.loop_edges;
+      c.loop_start = v;
+    }
+  }
+  component_of_.assign(table_.count(), 0u);
+  const std::size_t half_edges = 3 * c.faces + c.loop_edges;
+  const auto euler = static_cast<std::int64_t>(c.vertices) -
+                     static_cast<std::int64_t>(half_edges / 2) +
+                     static_cast<std::int64_t>(c.faces);
+  loop_.clear();
+  if (half_edges % 2 != 0 || euler != 1 || c.loop_edges < 3 ||
+      !table_.loop_closes(c.loop_start, c.loop_edges)) {
+    c.verdict = DiskVerdict::kTopology;
+    ++stats.rejected_topology;
+  } else if (!append_simple_loop(c, box, loop_)) {
+    c.verdict = DiskVerdict::kOutline;
+    ++stats.rejected_outline;
+  }
+  components_.push_back(c);
+  return c.verdict == DiskVerdict::kDisk;
+}
+
 void DiskTest::record(const Box& box, std::int32_t size, DiskStore& store,
                       std::vector<Triangle>& kept) {
   if (pinched_) {

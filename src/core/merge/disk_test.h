@@ -97,6 +97,13 @@ class DiskTest {
   // Tests the components of the triangles `runs` inside `box`, counting each rejection in
   // `stats`; returns whether every component is a disk (false at once when pinched).
   bool test_triangles(std::span<const TriangleRun> runs, const Box& box, MergeStats& stats);
+  // test_triangles for a box whose marching-cubes surface in `runs` is known to be one
+  // connected piece (blocks.cpp's one_connected_surface): the same verdict, disk and counts,
+  // bit for bit, without the union-find, and with facing and flatness first, from the
+  // triangles alone, so that a box that is not flat (most that fail) is rejected before its
+  // vertices are numbered. record() then keeps all its triangles, as after a pinch.
+  bool test_one_piece(std::span<const TriangleRun> runs, const Box& box, MergeStats& stats);
+
   // The components of the last test_triangles (empty when it was pinched).
   std::span<const Component> components() const { return components_; }
 
@@ -126,7 +133,7 @@ class DiskTest {
   LocalTable& table_;
   LoopTriangulator& outline_;
   std::span<const TriangleRun> runs_;  // of the last test_triangles
-  bool pinched_ = false;
+  bool pinched_ = false;  // or failed before its vertices were numbered: keep every triangle
   std::vector<std::uint32_t> component_of_;  // per local vertex
   std::vector<LocalTriangle> local_triangles_;
   std::vector<Component> components_;

@@ -31,13 +31,15 @@ struct Surface {
     DiskStore store;
     std::vector<Triangle> kept;
   };
-  Result test(const Box& box, double epsilon) const {
+  // With one_piece, by test_one_piece (for a surface that is one connected piece).
+  Result test(const Box& box, double epsilon, bool one_piece = false) const {
     LocalTable table(positions);
     LoopTriangulator outline({{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}});
     DiskTest disk_test(positions, triangles, Tolerance::in_voxels(epsilon), table, outline);
     const std::vector<TriangleRun> runs{{0, static_cast<std::uint32_t>(triangles.size())}};
     Result r;
-    r.all = disk_test.test_triangles(runs, box, r.stats);
+    r.all = one_piece ? disk_test.test_one_piece(runs, box, r.stats)
+                      : disk_test.test_triangles(runs, box, r.stats);
     for (const Component& c : disk_test.components()) r.verdicts.push_back(c.verdict);
     disk_test.record(box, 2, r.store, r.kept);
     return r;
@@ -195,6 +197,55 @@ TEST(DiskTest, ADiskWhoseLoopFoldsBackInProjectionHasNoSimpleOutline) {
   EXPECT_EQ(r.stats.rejected_outline, 1u);
   EXPECT_EQ(rejections(r.stats), 1u);
   EXPECT_EQ(r.kept.size(), 5u);
+}
+
+// test_one_piece, on surfaces of one piece, gives test_triangles' verdict and records the
+// same disk or keeps the same triangles; a rejection is counted once, for one reason.
+TEST(DiskTest, OnePieceTestGivesTheFullTestsResult) {
+  Surface pinched;  // two corner triangles sharing a vertex (one piece, pinched)
+  const VertexId m = pinched.vertex(0, 0, 1);
+  pinched.triangle(m, pinched.vertex(1, 0, 0), pinched.vertex(0, 1, 0));
+  pinched.triangle(m, pinched.vertex(1, 0, 2), pinched.vertex(0, 1, 2));
+  Surface shell;  // a tetrahedron: one piece, not a disk
+  const VertexId a = shell.vertex(0.5f, 0.5f, 0.5f), b = shell.vertex(1.5f, 0.5f, 0.5f),
+                 c = shell.vertex(0.5f, 1.5f, 0.5f), d = shell.vertex(0.5f, 0.5f, 1.5f);
+  shell.triangle(a, c, b);
+  shell.triangle(a, b, d);
+  shell.triangle(a, d, c);
+  shell.triangle(b, c, d);
+  Surface tilted = square_fan(1.2f);  // a disk whose normal is not an axis
+  tilted.positions[2][2] = 1.3f;
+  struct Case {
+    const char* name;
+    Surface surface;
+    double epsilon;
+    bool passes;
+  };
+  const std::vector<Case> cases{{"flat", square_fan(1.0f), 0.5, true},
+                                {"tilted", tilted, 0.5, true},
+                                {"thick", square_fan(1.8f), 0.5, false},
+                                {"thick within 0.9", square_fan(1.8f), 0.9, true},
+                                {"pinched", pinched, 0.5, false},
+                                {"shell", shell, 0.5, false}};
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.name);
+    const auto full = k.surface.test(kBox2, k.epsilon);
+    const auto one = k.surface.test(kBox2, k.epsilon, /*one_piece=*/true);
+    EXPECT_EQ(one.all, k.passes);
+    EXPECT_EQ(full.all, k.passes);
+    EXPECT_EQ(rejections(one.stats), k.passes ? 0u : 1u);
+    EXPECT_EQ(one.kept, full.kept);
+    ASSERT_EQ(one.store.disks.size(), full.store.disks.size());
+    EXPECT_EQ(one.store.loops, full.store.loops);
+    EXPECT_EQ(one.store.triangles, full.store.triangles);
+    EXPECT_EQ(one.store.areas, full.store.areas);
+    EXPECT_EQ(one.store.vertices, full.store.vertices);
+    for (std::size_t i = 0; i < one.store.disks.size(); ++i) {
+      EXPECT_EQ(one.store.disks[i].normal, full.store.disks[i].normal);
+      EXPECT_EQ(one.store.disks[i].area, full.store.disks[i].area);
+      EXPECT_EQ(one.store.disks[i].band, full.store.disks[i].band);
+    }
+  }
 }
 
 }  // namespace
