@@ -1,22 +1,41 @@
 #include "core/merge/loop_thinning.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 
 #include "core/mesh_distance.h"
 
 namespace typemerge::core::merge {
 
+namespace {
+
+// Whether face bits say one face and no edge (exactly one bit).
+bool inside_one_face(unsigned mask) { return mask != 0 && (mask & (mask - 1)) == 0; }
+
+}  // namespace
+
+// Where a loop vertex lies on its owners' boxes is found here, box by box, so that partner()
+// reads no other disk (a random read of the other disk's box was most of its time).
 LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& store,
                        Arrays& arrays)
-    : positions_(positions), store_(store), disks_(arrays.disks), count_(arrays.count) {
+    : positions_(positions),
+      store_(store),
+      disks_(arrays.disks),
+      count_(arrays.count),
+      inside_face_(arrays.inside_face) {
   arrays.disks.assign(positions.size(), {kNone, kNone});
   arrays.count.assign(positions.size(), 0);
+  arrays.inside_face.assign(positions.size(), 0);
   for (std::uint32_t id = 0; id < store.disks.size(); ++id) {
+    const FaceTest faces(store.disks[id].box);
     for (VertexId v : store.loop_of(store.disks[id])) {
       std::uint8_t& count = arrays.count[v];
-      if (count < 2) arrays.disks[v][count] = id;
+      if (count < 2) {
+        arrays.disks[v][count] = id;
+        if (inside_one_face(faces.mask(positions[v]))) {
+          arrays.inside_face[v] = static_cast<std::uint8_t>(arrays.inside_face[v] | 1u << count);
+        }
+      }
       if (count < 255) ++count;
     }
   }
@@ -24,11 +43,11 @@ LoopOwners::LoopOwners(std::span<const Position> positions, const DiskStore& sto
 
 std::uint32_t LoopOwners::partner(VertexId v, std::uint32_t self) const {
   if (count_[v] != 2) return kNone;
-  const std::uint32_t other = disks_[v][0] == self ? disks_[v][1] : disks_[v][0];
-  for (std::uint32_t d : {self, other}) {
-    if (std::popcount(FaceTest(store_.disks[d].box).mask(positions_[v])) != 1) return kNone;
-  }
-  return other;
+  const unsigned slot = disks_[v][0] == self ? 1 : 0;  // the other's
+  if (((inside_face_[v] >> slot) & 1u) == 0) return kNone;
+  // Self's box from the store (a part made after this table was is no owner here).
+  if (!inside_one_face(FaceTest(store_.disks[self].box).mask(positions_[v]))) return kNone;
+  return disks_[v][slot];
 }
 
 bool on_one_lattice_line(const Position& p, const Position& q) {

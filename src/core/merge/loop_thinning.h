@@ -37,6 +37,8 @@ class LoopOwners {
   struct Arrays {
     detail::HugePageVector<std::array<std::uint32_t, 2>> disks;
     detail::HugePageVector<std::uint8_t> count;
+    // Bit k: the vertex lies inside one face (on no edge) of disks[k]'s box.
+    detail::HugePageVector<std::uint8_t> inside_face;
   };
 
   // Written into `arrays` (emptied first), which must outlive it.
@@ -53,6 +55,7 @@ class LoopOwners {
   const DiskStore& store_;
   const detail::HugePageVector<std::array<std::uint32_t, 2>>& disks_;
   const detail::HugePageVector<std::uint8_t>& count_;
+  const detail::HugePageVector<std::uint8_t>& inside_face_;
 };
 
 // Whether two positions lie on one lattice line (same edge axis, same other coordinates).

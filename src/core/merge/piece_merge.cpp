@@ -50,6 +50,7 @@ void merge_surface(const PieceSurface& piece, const Box& lattice, const IndexToP
   state.assign(positions.size(), kOpen);
   scratch.owners.disks.reserve(vertex_room);
   scratch.owners.count.reserve(vertex_room);
+  scratch.owners.inside_face.reserve(vertex_room);
   const LoopOwners owners(positions, store, scratch.owners);
   thin_shared_faces(positions, store, owners, tolerance, state, stats);
 

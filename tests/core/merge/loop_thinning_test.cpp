@@ -121,6 +121,21 @@ TEST(LoopThinning, SharedFaceBetweenTwoDisksIsThinnedWithinEpsilon) {
   EXPECT_EQ(owners.partner(3, 0), 1u);
   EXPECT_EQ(owners.partner(3, 1), 0u);
   EXPECT_EQ(owners.partner(7, 0), kNone);  // on the left disk's loop only
+  EXPECT_EQ(owners.partner(0, 0), kNone);  // on both loops, but on the boxes' edge y = 0
+  EXPECT_EQ(owners.partner(0, 1), kNone);
+  {
+    // A part added to the store after the table was made (as a split does): its partner at
+    // vertex 3 is the first owner the table recorded, if its own box has 3 inside a face.
+    DiskStore grown = store;
+    LoopOwners::Arrays grown_arrays;
+    const LoopOwners before_growth(positions, grown, grown_arrays);
+    MergedDisk part;
+    part.box = {{2, 0, 0}, {3, 4, 2}};  // vertex 3 inside its face x = 2
+    grown.disks.push_back(part);
+    EXPECT_EQ(before_growth.partner(3, 2), 0u);
+    grown.disks[2].box = {{1, 0, 0}, {3, 4, 2}};  // vertex 3 inside the box, on no face
+    EXPECT_EQ(before_growth.partner(3, 2), kNone);
+  }
   std::vector<std::uint8_t> state(positions.size(), kOpen);
   MergeStats stats;
   thin_shared_faces(positions, store, owners, Tolerance::in_voxels(0.1), state, stats);
