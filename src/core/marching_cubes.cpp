@@ -350,7 +350,8 @@ class Extractor {
 
   // Extracts layers [first, last). When first > 0 the vertices of slice `first` belong to the
   // slab below: they get the local ids 0..shared_vertices_ − 1 and are not part of the output.
-  void run(Index first, Index last, double expected_vertices = -1.0) {
+  void run(Index first, Index last, double expected_vertices = -1.0,
+           detail::LayerObserver* observer = nullptr) {
     const std::size_t n = static_cast<std::size_t>(width_ * height_);
     const auto rows = static_cast<std::size_t>(height_);
     if (!buffers_) buffers_ = std::make_shared<detail::SliceBuffers>();
@@ -379,6 +380,7 @@ class Extractor {
       last_slice_end_vertex_ = mesh_.positions.size();
       add_layer_vertices(layer, lower, upper);
       add_cubes(layer, lower, upper);
+      if (observer != nullptr) observer->layer_done(layer, mesh_, cubes_);
       std::swap(lower, upper);
     }
   }
@@ -936,7 +938,8 @@ void SliceBuffers::release_pages() { release_whole_pages(block_.get(), bytes_); 
 
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals,
-                            double expected_vertices, SurfacePiece* recycled) {
+                            double expected_vertices, SurfacePiece* recycled,
+                            LayerObserver* observer) {
   assert(0 <= first && first < last && last <= cube_layer_count(volume, iso, options));
   // The extractor records cubes, and counts ambiguities, when these are set; it keeps both
   // itself (the piece takes them), so the targets stay empty.
@@ -947,7 +950,7 @@ SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOption
   if (options.stats != nullptr) with_cubes.stats = &unused_stats;
   Extractor extractor(volume, iso, with_cubes, defer_normals);
   if (recycled != nullptr) extractor.reuse(std::move(*recycled));
-  extractor.run(first, last, expected_vertices);
+  extractor.run(first, last, expected_vertices, observer);
   SurfacePiece piece;
   piece.mesh = std::move(extractor.mesh());
   piece.vertex_edges = std::move(extractor.vertex_edges());

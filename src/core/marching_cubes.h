@@ -18,6 +18,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "core/mesh.h"
@@ -159,6 +160,19 @@ struct SurfacePiece {
   std::shared_ptr<SliceBuffers> slice_buffers;  // the extractor's, for recycling
 };
 
+// Told by extract_layers after each cube layer is triangulated, with what it has made so far
+// (every vertex and triangle of that layer's cubes exists then; the arrays may move later).
+class LayerObserver {
+ public:
+  // `layer`: the cube layer just done (extract_layers' numbering); `cubes`: the records of
+  // every boundary cube so far, its own last.
+  virtual void layer_done(std::int64_t layer, const TriangleMesh& mesh,
+                          std::span<const BoundaryCube> cubes) = 0;
+
+ protected:
+  ~LayerObserver() = default;
+};
+
 // Cube layers extract_isosurface sweeps for these options (0 when there is no cube).
 std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOptions& options);
 
@@ -171,10 +185,13 @@ std::int64_t cube_layer_count(const Volume& volume, float iso, const ExtractOpti
 // estimate) instead of from a sample of the layers; the piece is the same either way.
 // recycled: an earlier piece whose arrays the new one is written into (emptied, capacity
 // kept: a caller extracting piece after piece maps their pages once); left moved-from.
+// observer: told after each layer (a caller that works on layers as they are made reads
+// them while they are in cache).
 // Precondition: 0 <= first < last <= cube_layer_count(volume, iso, options).
 SurfacePiece extract_layers(const Volume& volume, float iso, const ExtractOptions& options,
                             std::int64_t first, std::int64_t last, bool defer_normals = false,
-                            double expected_vertices = -1.0, SurfacePiece* recycled = nullptr);
+                            double expected_vertices = -1.0, SurfacePiece* recycled = nullptr,
+                            LayerObserver* observer = nullptr);
 
 // The normal extract_isosurface gives the vertex whose SurfacePiece::vertex_edges entry is
 // `edge` (close_borders as the piece was extracted with).

@@ -1,6 +1,7 @@
 #include "core/merge/blocks.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <utility>
 
@@ -61,21 +62,25 @@ bool one_connected_surface(std::span<const BoundaryCube> all, std::span<const st
     index[slot] = cube.index;
     present |= 1u << slot;
   }
+  // Bit s of joined[axis]: cube s and the cube after it along `axis` are joined (the low
+  // cube's high face is crossed: its corners are mixed); then a flood fill over the bits.
+  constexpr std::array<unsigned, 3> kLowSlots{0x55, 0x33, 0x0F};
+  std::array<unsigned, 3> joined{};
+  for (int axis = 0; axis < 3; ++axis) {
+    const unsigned face = kFaceCorners[2 * axis + 1];
+    for (unsigned low = present & (present >> (1u << axis)) & kLowSlots[axis]; low != 0;
+         low &= low - 1) {
+      const auto slot = static_cast<unsigned>(std::countr_zero(low));
+      const unsigned corners = index[slot] & face;
+      if (corners != 0 && corners != face) joined[axis] |= 1u << slot;
+    }
+  }
   unsigned reached = present & (~present + 1u);  // the lowest cube
   for (unsigned before = 0; reached != before;) {
     before = reached;
-    for (unsigned slot = 0; slot < 8; ++slot) {
-      if (((present >> slot) & 1u) == 0) continue;
-      for (int axis = 0; axis < 3; ++axis) {
-        const unsigned bit = 1u << axis;
-        if ((slot & bit) != 0 || ((present >> (slot | bit)) & 1u) == 0) continue;
-        // The low cube's high face along `axis`: crossed when its corners are mixed.
-        const unsigned corners = index[slot] & kFaceCorners[2 * axis + 1];
-        if (corners == 0 || corners == kFaceCorners[2 * axis + 1]) continue;
-        if (((reached >> slot) & 1u) != 0 || ((reached >> (slot | bit)) & 1u) != 0) {
-          reached |= 1u << slot | 1u << (slot | bit);
-        }
-      }
+    for (int axis = 0; axis < 3; ++axis) {
+      const unsigned step = 1u << axis;
+      reached |= (reached & joined[axis]) << step | ((reached >> step) & joined[axis]);
     }
   }
   return reached == present;
@@ -88,7 +93,7 @@ class BlockPass {
             DiskStore& store, std::vector<Triangle>& kept, MergeStats& stats)
       : piece_(piece), spacing_(spacing), test_(test), store_(store), kept_(kept), stats_(stats) {}
 
-  void run(const Box& lattice, const Dims& block);
+  void run(const Box& lattice, const Dims& block, std::size_t first_cube);
 
  private:
   bool test_block(std::span<std::uint32_t> cubes, const Box& box, const Dims& dims);
@@ -112,14 +117,14 @@ class BlockPass {
   ComposedBlock composed_;
 };
 
-void BlockPass::run(const Box& lattice, const Dims& block) {
+void BlockPass::run(const Box& lattice, const Dims& block, std::size_t first_cube) {
   const std::span<const BoundaryCube> cubes = piece_.cubes;
   std::vector<std::uint32_t> order;
   std::vector<std::uint32_t> bucket_start;
   std::vector<std::size_t> bucket;  // of each cube of the layer
   const std::int32_t bx = (lattice.hi[0] - lattice.lo[0] + block[0] - 1) / block[0];
   const std::int32_t by = (lattice.hi[1] - lattice.lo[1] + block[1] - 1) / block[1];
-  std::size_t c = 0;
+  std::size_t c = first_cube;
   while (c < cubes.size()) {
     // Cubes are in scan order (z, y, x): the block layer's cubes are a contiguous run.
     const std::int32_t layer = (cubes[c].z - lattice.lo[2]) / block[2];
@@ -377,8 +382,8 @@ bool BlockPass::try_replacing(const Box& box, std::int32_t size, std::size_t dis
 
 void test_blocks(const PieceSurface& piece, const Box& lattice, const Dims& block,
                  const std::array<double, 3>& spacing, DiskTest& test, DiskStore& store,
-                 std::vector<Triangle>& kept, MergeStats& stats) {
-  BlockPass(piece, spacing, test, store, kept, stats).run(lattice, block);
+                 std::vector<Triangle>& kept, MergeStats& stats, std::size_t first_cube) {
+  BlockPass(piece, spacing, test, store, kept, stats).run(lattice, block, first_cube);
 }
 
 }  // namespace typemerge::core::merge

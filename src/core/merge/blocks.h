@@ -53,11 +53,13 @@ Dims block_dims(const IndexToPatient& geometry, const MergeOptions& options);
 // not halved keeps its edge.
 Dims children_of(const Dims& dims, const std::array<double, 3>& spacing);
 
-// Tests every block of `block` cubes of the piece's lattice box `lattice`, in scan order of
-// the blocks (z, y, x), their halves in the same order: passing disks into `store`, the
-// triangles of what fails into `kept`, rejections and nothing else into `stats`.
+// Tests every block of `block` cubes of the piece's lattice box `lattice` that holds the
+// cubes from `first_cube` on, in scan order of the blocks (z, y, x), their halves in the same
+// order: passing disks into `store`, the triangles of what fails into `kept`, rejections and
+// nothing else into `stats`. The cubes before `first_cube` must fill whole layers of blocks
+// (so a caller can test layer after layer of blocks as marching cubes makes them).
 void test_blocks(const PieceSurface& piece, const Box& lattice, const Dims& block,
                  const std::array<double, 3>& spacing, DiskTest& test, DiskStore& store,
-                 std::vector<Triangle>& kept, MergeStats& stats);
+                 std::vector<Triangle>& kept, MergeStats& stats, std::size_t first_cube = 0);
 
 }  // namespace typemerge::core::merge

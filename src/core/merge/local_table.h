@@ -33,6 +33,14 @@ class LocalTable {
     count_ = 0;
   }
 
+  // For the same piece's vertices, more of them made since (stamps and ids kept; room as
+  // reserved by reset, so the arrays do not move while there is room).
+  void extend(std::span<const Position> positions) {
+    positions_of_piece_ = positions;
+    stamp_.resize(positions.size(), 0);
+    local_.resize(positions.size(), 0);
+  }
+
   // A new stamp for the piece's vertices: after it, seen() is false for every vertex.
   void new_visit() {
     if (++visit_ == 0) {

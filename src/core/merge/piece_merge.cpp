@@ -18,47 +18,93 @@
 namespace typemerge::core::merge {
 namespace {
 
-// The three steps on one piece's marching-cubes surface; its triangles into scratch.triangles.
-void merge_surface(const PieceSurface& piece, const Box& lattice, const IndexToPatient& geometry,
-                   const MergeOptions& options, PieceScratch& scratch, MergeStats& stats) {
-  // Room in the scratch's arrays for the largest piece (marching cubes' outputs were reserved
-  // for it), so that a later, larger piece does not move them to fresh pages.
-  const std::size_t vertex_room = piece.mesh.positions.capacity();
-  const std::size_t triangle_room = piece.mesh.triangles.capacity();
-  const std::span<const Position> positions = piece.mesh.positions;
-  const std::array<double, 3> spacing =
-      options.blocks_follow_spacing
-          ? std::array<double, 3>{geometry.spacing(0), geometry.spacing(1), geometry.spacing(2)}
-          : std::array<double, 3>{1.0, 1.0, 1.0};
-  LocalTable& table = scratch.table;
-  table.reset(positions, vertex_room);
-  DiskStore& store = scratch.store;
-  std::vector<Triangle>& out = scratch.triangles;
-  LoopTriangulator triangulator(geometry.axes);
-  store.reset(triangle_room, vertex_room);
-  out.clear();
-  out.reserve(triangle_room / 2);
+// Step 1 as marching cubes makes the piece: each layer of blocks is tested as soon as its
+// last cube layer is triangulated, while that layer's triangles and vertices are still in the
+// processor's cache (tested after the whole piece, they were read back from memory). Then
+// steps 2 and 3 on the piece made (finish).
+class MergeAsExtracted final : public detail::LayerObserver {
+ public:
+  MergeAsExtracted(const Box& lattice, std::int64_t pad, const IndexToPatient& geometry,
+                   const MergeOptions& options, PieceScratch& scratch, MergeStats& stats)
+      : lattice_(lattice),
+        pad_(pad),
+        geometry_(geometry),
+        block_(block_dims(geometry, options)),
+        spacing_(options.blocks_follow_spacing
+                     ? std::array<double, 3>{geometry.spacing(0), geometry.spacing(1),
+                                             geometry.spacing(2)}
+                     : std::array<double, 3>{1.0, 1.0, 1.0}),
+        tolerance_(options.epsilon_mm > 0.0
+                       ? Tolerance::in_mm(options.epsilon_mm, geometry.axes)
+                       : Tolerance::in_voxels(options.epsilon_voxels)),
+        triangulator_(geometry.axes),
+        scratch_(scratch),
+        stats_(stats) {}
 
-  const Tolerance tolerance = options.epsilon_mm > 0.0
-                                  ? Tolerance::in_mm(options.epsilon_mm, geometry.axes)
-                                  : Tolerance::in_voxels(options.epsilon_voxels);
-  DiskTest test(positions, piece.mesh.triangles, tolerance, table, triangulator);
-  test_blocks(piece, lattice, block_dims(geometry, options), spacing, test, store, out, stats);
+  void layer_done(std::int64_t layer, const TriangleMesh& mesh,
+                  std::span<const BoundaryCube> cubes) override {
+    const auto z = static_cast<std::int32_t>(layer - pad_);
+    if ((z - lattice_.lo[2] + 1) % block_[2] == 0 || z + 1 == lattice_.hi[2]) {
+      test_new_blocks(mesh, cubes);
+    }
+  }
 
-  std::vector<std::uint8_t>& state = scratch.state;
-  state.reserve(vertex_room);
-  state.assign(positions.size(), kOpen);
-  scratch.owners.disks.reserve(vertex_room);
-  scratch.owners.count.reserve(vertex_room);
-  scratch.owners.inside_face.reserve(vertex_room);
-  const LoopOwners owners(positions, store, scratch.owners);
-  thin_shared_faces(positions, store, owners, tolerance, state, stats);
+  // Steps 2 and 3 on the piece's surface as marching cubes left it; the merged triangles
+  // into scratch.triangles.
+  void finish(const PieceSurface& piece) {
+    test_new_blocks(piece.mesh, piece.cubes);  // none left, unless the piece had no layer
+    const std::size_t vertex_room = piece.mesh.positions.capacity();
+    const std::span<const Position> positions = piece.mesh.positions;
+    std::vector<std::uint8_t>& state = scratch_.state;
+    state.reserve(vertex_room);
+    state.assign(positions.size(), kOpen);
+    scratch_.owners.disks.reserve(vertex_room);
+    scratch_.owners.count.reserve(vertex_room);
+    scratch_.owners.inside_face.reserve(vertex_room);
+    const LoopOwners owners(positions, scratch_.store, scratch_.owners);
+    thin_shared_faces(positions, scratch_.store, owners, tolerance_, state, stats_);
 
-  scratch.made.reserve(triangle_room / 2);
-  triangulate_disks(piece, geometry.axes, owners, store, state, table, triangulator,
-                    scratch.made, out, stats);
-  if (!scratch.keep) scratch.release_merge_arrays();
-}
+    scratch_.made.reserve(piece.mesh.triangles.capacity() / 2);
+    scratch_.table.extend(positions);
+    triangulate_disks(piece, geometry_.axes, owners, scratch_.store, state, scratch_.table,
+                      triangulator_, scratch_.made, scratch_.triangles, stats_);
+    if (!scratch_.keep) scratch_.release_merge_arrays();
+  }
+
+ private:
+  // Step 1 on the blocks of the cubes made since the last call.
+  void test_new_blocks(const TriangleMesh& mesh, std::span<const BoundaryCube> cubes) {
+    if (!started_) {
+      // Room in the scratch's arrays for the largest piece (marching cubes' outputs were
+      // reserved for it), so that a later, larger piece does not move them to fresh pages.
+      const std::size_t vertex_room = mesh.positions.capacity();
+      const std::size_t triangle_room = mesh.triangles.capacity();
+      scratch_.table.reset(mesh.positions, vertex_room);
+      scratch_.store.reset(triangle_room, vertex_room);
+      scratch_.triangles.clear();
+      scratch_.triangles.reserve(triangle_room / 2);
+      started_ = true;
+    }
+    if (tested_cubes_ == cubes.size()) return;
+    scratch_.table.extend(mesh.positions);
+    DiskTest test(mesh.positions, mesh.triangles, tolerance_, scratch_.table, triangulator_);
+    test_blocks({mesh, cubes}, lattice_, block_, spacing_, test, scratch_.store,
+                scratch_.triangles, stats_, tested_cubes_);
+    tested_cubes_ = cubes.size();
+  }
+
+  Box lattice_;
+  std::int64_t pad_;
+  const IndexToPatient& geometry_;
+  Dims block_;
+  std::array<double, 3> spacing_;
+  Tolerance tolerance_;
+  LoopTriangulator triangulator_;
+  PieceScratch& scratch_;
+  MergeStats& stats_;
+  bool started_ = false;
+  std::size_t tested_cubes_ = 0;
+};
 
 }  // namespace
 
@@ -74,9 +120,18 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
                         PieceScratch& scratch, double expected_vertices,
                         const std::function<void()>& reads_done) {
   const bool normals = extract.vertex_normals;
+  const std::int32_t pad = extract.close_borders ? 1 : 0;
+  const VolumeSize& size = volume.size();
+  Box lattice;
+  lattice.lo = {-pad, -pad, static_cast<std::int32_t>(first) - pad};
+  lattice.hi = {static_cast<std::int32_t>(size.nx - 1 + pad),
+                static_cast<std::int32_t>(size.ny - 1 + pad),
+                static_cast<std::int32_t>(last) - pad};
+  MergedPiece out;
+  MergeAsExtracted merge(lattice, pad, volume.geometry(), options, scratch, out.stats);
   detail::SurfacePiece piece =
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
-                             expected_vertices, &scratch.surface);
+                             expected_vertices, &scratch.surface, &merge);
   // The slice buffers (two slices' edge tables) are idle while the piece merges: freed after
   // the thread's last piece; with return_idle_pages, else their pages returned until the
   // thread's next piece's marching cubes.
@@ -86,21 +141,11 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
     piece.slice_buffers->release_pages();
   }
   if (reads_done && !normals) reads_done();
-  MergedPiece out;
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
   out.stats.triangles_before = piece.mesh.triangles.size();
   out.stats.vertices_before = piece.mesh.positions.size() - piece.shared_vertices;
-
-  const std::int32_t pad = extract.close_borders ? 1 : 0;
-  const VolumeSize& size = volume.size();
-  Box lattice;
-  lattice.lo = {-pad, -pad, static_cast<std::int32_t>(first) - pad};
-  lattice.hi = {static_cast<std::int32_t>(size.nx - 1 + pad),
-                static_cast<std::int32_t>(size.ny - 1 + pad),
-                static_cast<std::int32_t>(last) - pad};
-  merge_surface({piece.mesh, piece.cubes}, lattice, volume.geometry(), options, scratch,
-                out.stats);
+  merge.finish({piece.mesh, piece.cubes});
   const std::vector<Triangle>& triangles = scratch.triangles;
 
   // Compaction: the vertices still used, in their order (so the seam's stay first, in order),
