@@ -242,8 +242,9 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
   std::size_t started = 0;
   // The volume's slices each piece reads (slices_done): piece i's cube layers [b_i, b_i+1)
   // read slices b_i − pad to b_i+1 − pad, and one more on each side for gradient normals.
-  // Its own slices, read by no other piece, are reported as soon as it has read them; the
-  // slices below the next piece's first as the pieces are appended, in order, but for those.
+  // Its own slices, read by no other piece, are reported as soon as it has read them (as its
+  // marching cubes passes them); the slices below the next piece's first as the pieces are
+  // appended, in order, but for those.
   const std::int64_t pad = extract.close_borders ? 1 : 0;
   const std::int64_t nz = volume.size().nz;
   const auto first_read = [&](std::size_t i) {
@@ -279,15 +280,21 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
         scratch->output = std::move(output);
         scratch->keep = i + threads < count;  // else this thread's last piece
-        std::function<void()> reads_done;
+        // Its own slices reported as it passes them, each once.
+        std::function<void(std::int64_t)> reads_below;
         if (options.slices_done) {
-          reads_done = [&, own = own_slices(i)] {
-            if (own.first < own.second) options.slices_done(own.first, own.second);
+          reads_below = [&, own = own_slices(i), done = own_slices(i).first](
+                            std::int64_t below) mutable {
+            const std::int64_t up_to = std::min(below, own.second);
+            if (done < up_to) {
+              options.slices_done(done, up_to);
+              done = up_to;
+            }
           };
         }
         merge::MergedPiece piece = merge::merge_piece(volume, iso, extract, options, bounds[i],
                                                       bounds[i + 1], *scratch, largest,
-                                                      reads_done);
+                                                      reads_below);
         if (scratch->keep) {  // else freed now: the last pieces need no more
           const std::lock_guard lock(scratch_mutex);
           spare.push_back(std::move(scratch));

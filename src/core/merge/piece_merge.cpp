@@ -24,8 +24,11 @@ namespace {
 // steps 2 and 3 on the piece made (finish).
 class MergeAsExtracted final : public detail::LayerObserver {
  public:
+  // reads_below: told, after each cube layer, the slices below which marching cubes reads
+  // no more (none when null).
   MergeAsExtracted(const Box& lattice, std::int64_t pad, const IndexToPatient& geometry,
-                   const MergeOptions& options, PieceScratch& scratch, MergeStats& stats)
+                   const MergeOptions& options, PieceScratch& scratch, MergeStats& stats,
+                   const std::function<void(std::int64_t below)>* reads_below)
       : lattice_(lattice),
         pad_(pad),
         geometry_(geometry),
@@ -39,11 +42,15 @@ class MergeAsExtracted final : public detail::LayerObserver {
                        : Tolerance::in_voxels(options.epsilon_voxels)),
         triangulator_(geometry.axes),
         scratch_(scratch),
-        stats_(stats) {}
+        stats_(stats),
+        reads_below_(reads_below) {}
 
   void layer_done(std::int64_t layer, const TriangleMesh& mesh,
                   std::span<const BoundaryCube> cubes) override {
     const auto z = static_cast<std::int32_t>(layer - pad_);
+    // Cube layer `layer` joined slices layer and layer + 1 (padded numbering); the next reads
+    // from layer + 1 up, i.e. the volume's slice layer + 1 − pad.
+    if (reads_below_ != nullptr) (*reads_below_)(layer + 1 - pad_);
     if ((z - lattice_.lo[2] + 1) % block_[2] == 0 || z + 1 == lattice_.hi[2]) {
       test_new_blocks(mesh, cubes);
     }
@@ -102,6 +109,7 @@ class MergeAsExtracted final : public detail::LayerObserver {
   LoopTriangulator triangulator_;
   PieceScratch& scratch_;
   MergeStats& stats_;
+  const std::function<void(std::int64_t below)>* reads_below_;
   bool started_ = false;
   std::size_t tested_cubes_ = 0;
 };
@@ -118,7 +126,7 @@ void PieceScratch::release_merge_arrays() {
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last,
                         PieceScratch& scratch, double expected_vertices,
-                        const std::function<void()>& reads_done) {
+                        const std::function<void(std::int64_t below)>& reads_below) {
   const bool normals = extract.vertex_normals;
   const std::int32_t pad = extract.close_borders ? 1 : 0;
   const VolumeSize& size = volume.size();
@@ -128,7 +136,8 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
                 static_cast<std::int32_t>(size.ny - 1 + pad),
                 static_cast<std::int32_t>(last) - pad};
   MergedPiece out;
-  MergeAsExtracted merge(lattice, pad, volume.geometry(), options, scratch, out.stats);
+  MergeAsExtracted merge(lattice, pad, volume.geometry(), options, scratch, out.stats,
+                         reads_below && !normals ? &reads_below : nullptr);
   detail::SurfacePiece piece =
       detail::extract_layers(volume, iso, extract, first, last, /*defer_normals=*/normals,
                              expected_vertices, &scratch.surface, &merge);
@@ -140,7 +149,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
   } else if (options.return_idle_pages && piece.slice_buffers) {
     piece.slice_buffers->release_pages();
   }
-  if (reads_done && !normals) reads_done();
+  if (reads_below && !normals) reads_below(size.nz);
   out.shared = piece.shared_vertices;
   out.ambiguity = piece.stats;
   out.stats.triangles_before = piece.mesh.triangles.size();
@@ -194,7 +203,7 @@ MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& e
     if (new_id[v] == kNone) throw std::logic_error("type merging dropped a seam vertex");
     out.top.push_back(new_id[v]);
   }
-  if (reads_done && normals) reads_done();
+  if (reads_below && normals) reads_below(volume.size().nz);
   out.stats.triangles_after = out.mesh.triangles.size();
   out.stats.vertices_after = out.mesh.positions.size() - out.shared;
   scratch.surface = std::move(piece);

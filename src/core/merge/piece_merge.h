@@ -64,13 +64,15 @@ struct PieceScratch {
 // vertex were dropped (it cannot be: seam vertices lie on block faces no second disk shares).
 // expected_vertices: an estimate of marching cubes' vertices in the piece, to size its
 // outputs (detail::extract_layers; < 0: none).
-// `scratch`: reused between pieces (one per concurrent piece). `reads_done`, when set, is
-// called once, as soon as the piece has read the last sample it reads of the volume (after
-// its marching cubes; after its vertices' normals when extract.vertex_normals).
+// `scratch`: reused between pieces (one per concurrent piece). `reads_below`, when set, is
+// called with `below` rising as the piece stops reading the volume's slices below it (slice
+// numbers of the volume): as its marching cubes passes them, and once with the volume's slice
+// count when it has read its last sample (after its marching cubes; after its vertices'
+// normals when extract.vertex_normals, with no call before).
 MergedPiece merge_piece(const Volume& volume, float iso, const ExtractOptions& extract,
                         const MergeOptions& options, std::int64_t first, std::int64_t last,
                         PieceScratch& scratch, double expected_vertices = -1.0,
-                        const std::function<void()>& reads_done = nullptr);
+                        const std::function<void(std::int64_t below)>& reads_below = nullptr);
 
 // Appends a merged piece to `out`, joining its shared vertices to `seam` (the output ids of
 // the top slice of the piece appended before it), and makes `seam` its own top slice.
