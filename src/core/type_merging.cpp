@@ -280,13 +280,16 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso, const ExtractO
         if (!scratch) scratch = std::make_unique<merge::PieceScratch>();
         scratch->output = std::move(output);
         scratch->keep = i + threads < count;  // else this thread's last piece
-        // Its own slices reported as it passes them, each once.
+        // Its own slices reported as it passes them, each once, in runs of at least
+        // kReportRun slices (the last may be shorter): a page that straddles two reports is
+        // not returned, and with one slice a report a small slice could lose every page.
         std::function<void(std::int64_t)> reads_below;
         if (options.slices_done) {
           reads_below = [&, own = own_slices(i), done = own_slices(i).first](
                             std::int64_t below) mutable {
+            constexpr std::int64_t kReportRun = 2;
             const std::int64_t up_to = std::min(below, own.second);
-            if (done < up_to) {
+            if (done < up_to && (up_to - done >= kReportRun || up_to == own.second)) {
               options.slices_done(done, up_to);
               done = up_to;
             }

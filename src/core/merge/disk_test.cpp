@@ -59,7 +59,7 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
       const Triangle& t = triangles_[id];
       LocalTriangle local;
       local.id = id;
-      for (int k = 0; k < 3; ++k) local.corner[k] = table_.add(t[k], faces);
+      for (int k = 0; k < 3; ++k) local.corner[k] = table_.add_with_position(t[k], faces);
       table_.unite(local.corner[0], local.corner[1], local.corner[2]);
       // An edge on a box face is a loop edge, directed as its triangle has it. Two leaving one
       // vertex: the surface is pinched there, no disk. Without a branch on whether an edge is

@@ -68,27 +68,19 @@ class LocalTable {
     }
   }
 
-  // Vertex v's local index, adding it (with its face bits on the box) when new.
-  std::uint32_t add(VertexId v, const FaceTest& faces) {
-    if (stamp_[v] != visit_) {
-      stamp_[v] = visit_;
-      const std::uint32_t i = count_++;
-      local_[v] = i;
-      vertices_[i] = v;
-      const Position& p = positions_of_piece_[v];
-      positions_[i] = to_double(p);
-      masks_[i] = static_cast<std::uint8_t>(faces.mask(p));
-      next_[i] = kNone;
-      parent_[i] = i;
-    }
-    return local_[v];
+  // Vertex v's local index, adding it (with its face bits on the box) when new; position()
+  // is then unset (see add_with_position).
+  std::uint32_t add(VertexId v, const FaceTest& faces) { return add_vertex<false>(v, faces); }
+  // The same, position() set.
+  std::uint32_t add_with_position(VertexId v, const FaceTest& faces) {
+    return add_vertex<true>(v, faces);
   }
   // The local index of a vertex added in this visit.
   std::uint32_t local(VertexId v) const { return local_[v]; }
 
   std::uint32_t count() const { return count_; }
   VertexId vertex(std::uint32_t i) const { return vertices_[i]; }
-  const P3& position(std::uint32_t i) const { return positions_[i]; }
+  const P3& position(std::uint32_t i) const { return positions_[i]; }  // add_with_position's
   unsigned mask(std::uint32_t i) const { return masks_[i]; }
   std::uint32_t next(std::uint32_t i) const { return next_[i]; }
   void set_next(std::uint32_t i, std::uint32_t j) { next_[i] = j; }
@@ -145,6 +137,22 @@ class LocalTable {
   }
 
  private:
+  template <bool kPosition>
+  std::uint32_t add_vertex(VertexId v, const FaceTest& faces) {
+    if (stamp_[v] != visit_) {
+      stamp_[v] = visit_;
+      const std::uint32_t i = count_++;
+      local_[v] = i;
+      vertices_[i] = v;
+      const Position& p = positions_of_piece_[v];
+      if constexpr (kPosition) positions_[i] = to_double(p);
+      masks_[i] = static_cast<std::uint8_t>(faces.mask(p));
+      next_[i] = kNone;
+      parent_[i] = i;
+    }
+    return local_[v];
+  }
+
   std::span<const Position> positions_of_piece_;
   std::vector<std::uint32_t> stamp_;  // per piece vertex: the visit that last saw it
   std::vector<std::uint32_t> local_;  // per piece vertex: its local index
