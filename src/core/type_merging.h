@@ -77,7 +77,8 @@
 //    on box faces that no second disk shares, so it stays, as does every border edge.
 //
 // Streaming and memory: each piece is extracted alone with its cube records (marching cubes'
-// slabs), without vertex normals, merged, compacted and appended; normals are computed for
+// slabs), without vertex normals, merged (its blocks tested layer by layer of blocks as
+// marching cubes makes them, passes 2 and 3 after), compacted and appended; normals are computed for
 // the vertices kept only, equal to marching cubes' (none with extract.vertex_normals false).
 // Peak ≈ the output mesh + per piece being made: its marching-cubes mesh and cube records
 // (about 50 bytes per MC triangle: positions and lattice edges 20 bytes per vertex, triangles
@@ -132,8 +133,9 @@ struct MergeOptions {
   unsigned threads = 1;
   // When set, called with slice ranges [begin, end) that the extraction reads no more: the
   // ranges are disjoint and not empty, they cover the volume's slices [0, nz), and each is
-  // reported as soon as every piece that reads it has read it (a piece's own slices right
-  // after its marching cubes, while it merges; the slices two pieces share once both have).
+  // reported as soon as every piece that reads it has read it (a piece's own slices as its
+  // marching cubes passes them, two or more at a time; the slices two pieces share once both
+  // have).
   // Calls may come from several threads at once. A holder that needs the volume no more can
   // release them (Volume::release_slices) so that the volume's memory shrinks while the
   // surface is made. The output does not depend on it.
