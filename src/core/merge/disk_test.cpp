@@ -44,6 +44,44 @@ bool DiskTest::append_simple_loop(Component& c, const Box& box, std::vector<Vert
   return outline_.is_simple(std::span(loops).subspan(c.loop_first), positions_, box, c.normal);
 }
 
+// An edge on a box face is a loop edge, directed as its triangle has it; two leaving one
+// vertex pinch the surface there. Without a branch on whether an edge is on a face (a quarter
+// of those branches were mispredicted: cachegrind's branch simulation put them first in the
+// merge); the table is not read after a pinch.
+bool DiskTest::mark_loop_edges(const std::array<std::uint32_t, 3>& corner) {
+  bool pinched = false;
+  for (int k = 0; k < 3; ++k) {
+    const std::uint32_t a = corner[k];
+    const std::uint32_t b = corner[k == 2 ? 0 : k + 1];
+    const bool on_face = (table_.mask(a) & table_.mask(b)) != 0;
+    const std::uint32_t next = table_.next(a);
+    pinched |= on_face & (next != kNone);
+    table_.set_next(a, on_face ? b : next);
+  }
+  return pinched;
+}
+
+// The summed area vector kept as c.area, c.normal made unit; false when it is zero (the
+// component faces no one way).
+bool DiskTest::normalise(Component& c) {
+  c.area = c.normal;
+  const double length = std::sqrt(dot(c.normal, c.normal));
+  if (!(length > 0.0)) return false;
+  for (double& x : c.normal) x /= length;
+  return true;
+}
+
+// Euler characteristic 1 (every edge not on the loop has a triangle on each side) and one
+// loop of at least three edges.
+bool DiskTest::one_disk(const Component& c) const {
+  const std::size_t half_edges = 3 * c.faces + c.loop_edges;
+  const auto euler = static_cast<std::int64_t>(c.vertices) -
+                     static_cast<std::int64_t>(half_edges / 2) +
+                     static_cast<std::int64_t>(c.faces);
+  return half_edges % 2 == 0 && euler == 1 && c.loop_edges >= 3 &&
+         table_.loop_closes(c.loop_start, c.loop_edges);
+}
+
 bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
                               MergeStats& stats) {
   runs_ = runs;
@@ -61,20 +99,7 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
       local.id = id;
       for (int k = 0; k < 3; ++k) local.corner[k] = table_.add_with_position(t[k], faces);
       table_.unite(local.corner[0], local.corner[1], local.corner[2]);
-      // An edge on a box face is a loop edge, directed as its triangle has it. Two leaving one
-      // vertex: the surface is pinched there, no disk. Without a branch on whether an edge is
-      // on a face (a quarter of those branches were mispredicted: cachegrind's branch
-      // simulation put them first in the merge); the table is not read after a pinch.
-      bool pinched = false;
-      for (int k = 0; k < 3; ++k) {
-        const std::uint32_t a = local.corner[k];
-        const std::uint32_t b = local.corner[k == 2 ? 0 : k + 1];
-        const bool on_face = (table_.mask(a) & table_.mask(b)) != 0;
-        const std::uint32_t next = table_.next(a);
-        pinched |= on_face & (next != kNone);
-        table_.set_next(a, on_face ? b : next);
-      }
-      if (pinched) {
+      if (mark_loop_edges(local.corner)) {
         ++stats.rejected_topology;
         pinched_ = true;
         components_.clear();
@@ -94,24 +119,16 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
   }
   // Per component: one disk (Euler characteristic 1, one loop), facing one way, flat.
   for (Component& c : components_) {
-    const std::size_t half_edges = 3 * c.faces + c.loop_edges;
-    const auto euler = static_cast<std::int64_t>(c.vertices) -
-                       static_cast<std::int64_t>(half_edges / 2) +
-                       static_cast<std::int64_t>(c.faces);
-    if (half_edges % 2 != 0 || euler != 1 || c.loop_edges < 3 ||
-        !table_.loop_closes(c.loop_start, c.loop_edges)) {
+    if (!one_disk(c)) {
       c.verdict = DiskVerdict::kTopology;
       ++stats.rejected_topology;
       continue;
     }
-    c.area = c.normal;
-    const double length = std::sqrt(dot(c.normal, c.normal));
-    if (!(length > 0.0)) {
+    if (!normalise(c)) {
       c.verdict = DiskVerdict::kFacing;
       ++stats.rejected_facing;
       continue;
     }
-    for (double& x : c.normal) x /= length;
   }
   for (const LocalTriangle& t : local_triangles_) {
     Component& c = components_[component_of_[t.corner[0]]];
@@ -195,13 +212,10 @@ bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
   // Facing and flatness as test_triangles judges them; a box failing either fails whatever
   // its topology, so the verdict is the same (the reason counted may differ).
   pinched_ = true;
-  c.area = c.normal;
-  const double length = std::sqrt(dot(c.normal, c.normal));
-  if (!(length > 0.0)) {
+  if (!normalise(c)) {
     ++stats.rejected_facing;
     return false;
   }
-  for (double& x : c.normal) x /= length;
   for (const LocalTriangle& t : local_triangles_) {
     if (!(dot(t.area, c.normal) > 0.0)) {
       ++stats.rejected_facing;
@@ -227,16 +241,7 @@ bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
   for (LocalTriangle& local : local_triangles_) {
     const Triangle& t = triangles_[local.id];
     for (int k = 0; k < 3; ++k) local.corner[k] = table_.add(t[k], faces);
-    bool pinched = false;
-    for (int k = 0; k < 3; ++k) {
-      const std::uint32_t a = local.corner[k];
-      const std::uint32_t b = local.corner[k == 2 ? 0 : k + 1];
-      const bool on_face = (table_.mask(a) & table_.mask(b)) != 0;
-      const std::uint32_t next = table_.next(a);
-      pinched |= on_face & (next != kNone);
-      table_.set_next(a, on_face ? b : next);
-    }
-    if (pinched) {
+    if (mark_loop_edges(local.corner)) {
       ++stats.rejected_topology;
       return false;
     }
@@ -251,13 +256,8 @@ bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
     }
   }
   component_of_.assign(table_.count(), 0u);
-  const std::size_t half_edges = 3 * c.faces + c.loop_edges;
-  const auto euler = static_cast<std::int64_t>(c.vertices) -
-                     static_cast<std::int64_t>(half_edges / 2) +
-                     static_cast<std::int64_t>(c.faces);
   loop_.clear();
-  if (half_edges % 2 != 0 || euler != 1 || c.loop_edges < 3 ||
-      !table_.loop_closes(c.loop_start, c.loop_edges)) {
+  if (!one_disk(c)) {
     c.verdict = DiskVerdict::kTopology;
     ++stats.rejected_topology;
   } else if (!append_simple_loop(c, box, loop_)) {
@@ -372,13 +372,10 @@ bool DiskTest::test_parts(const DiskStore& store, std::size_t first_part, const 
       ++stats.rejected_topology;
       return false;
     }
-    c.area = c.normal;
-    const double length = std::sqrt(dot(c.normal, c.normal));
-    if (!(length > 0.0)) {
+    if (!normalise(c)) {
       ++stats.rejected_facing;
       return false;
     }
-    for (double& x : c.normal) x /= length;
   }
   // Facing, then flatness, over the parts' triangles and vertices.
   for (std::uint32_t p = 0; p < parts; ++p) {

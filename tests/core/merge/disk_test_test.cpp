@@ -92,8 +92,8 @@ TEST(DiskTest, AFlatSquareIsADiskAndIsRecordedWithItsLoop) {
   EXPECT_TRUE(r.kept.empty());
 }
 
-TEST(DiskTest, AClosedShellIsNotADisk) {
-  // A tetrahedron inside the box: Euler characteristic 2, no edge on a face.
+// A tetrahedron inside the box: Euler characteristic 2, no edge on a face.
+Surface tetrahedron() {
   Surface s;
   const VertexId a = s.vertex(0.5f, 0.5f, 0.5f), b = s.vertex(1.5f, 0.5f, 0.5f),
                  c = s.vertex(0.5f, 1.5f, 0.5f), d = s.vertex(0.5f, 0.5f, 1.5f);
@@ -101,7 +101,20 @@ TEST(DiskTest, AClosedShellIsNotADisk) {
   s.triangle(a, b, d);
   s.triangle(a, d, c);
   s.triangle(b, c, d);
-  const auto r = s.test(kBox2, 0.5);
+  return s;
+}
+
+// Two corner triangles of the box meeting at one vertex on the edge x = 0, y = 0.
+Surface pinched_corners() {
+  Surface s;
+  const VertexId m = s.vertex(0, 0, 1);
+  s.triangle(m, s.vertex(1, 0, 0), s.vertex(0, 1, 0));
+  s.triangle(m, s.vertex(1, 0, 2), s.vertex(0, 1, 2));
+  return s;
+}
+
+TEST(DiskTest, AClosedShellIsNotADisk) {
+  const auto r = tetrahedron().test(kBox2, 0.5);
   EXPECT_FALSE(r.all);
   EXPECT_EQ(r.verdicts, std::vector<DiskVerdict>{DiskVerdict::kTopology});
   EXPECT_EQ(r.stats.rejected_topology, 1u);
@@ -111,12 +124,7 @@ TEST(DiskTest, AClosedShellIsNotADisk) {
 }
 
 TEST(DiskTest, TwoLoopEdgesLeavingOneVertexPinchTheWholeBox) {
-  // Two corner triangles of the box meeting at one vertex on the edge x = 0, y = 0.
-  Surface s;
-  const VertexId m = s.vertex(0, 0, 1);
-  s.triangle(m, s.vertex(1, 0, 0), s.vertex(0, 1, 0));
-  s.triangle(m, s.vertex(1, 0, 2), s.vertex(0, 1, 2));
-  const auto r = s.test(kBox2, 0.5);
+  const auto r = pinched_corners().test(kBox2, 0.5);
   EXPECT_FALSE(r.all);
   EXPECT_TRUE(r.verdicts.empty());
   EXPECT_EQ(r.stats.rejected_topology, 1u);
@@ -202,17 +210,6 @@ TEST(DiskTest, ADiskWhoseLoopFoldsBackInProjectionHasNoSimpleOutline) {
 // test_one_piece, on surfaces of one piece, gives test_triangles' verdict and records the
 // same disk or keeps the same triangles; a rejection is counted once, for one reason.
 TEST(DiskTest, OnePieceTestGivesTheFullTestsResult) {
-  Surface pinched;  // two corner triangles sharing a vertex (one piece, pinched)
-  const VertexId m = pinched.vertex(0, 0, 1);
-  pinched.triangle(m, pinched.vertex(1, 0, 0), pinched.vertex(0, 1, 0));
-  pinched.triangle(m, pinched.vertex(1, 0, 2), pinched.vertex(0, 1, 2));
-  Surface shell;  // a tetrahedron: one piece, not a disk
-  const VertexId a = shell.vertex(0.5f, 0.5f, 0.5f), b = shell.vertex(1.5f, 0.5f, 0.5f),
-                 c = shell.vertex(0.5f, 1.5f, 0.5f), d = shell.vertex(0.5f, 0.5f, 1.5f);
-  shell.triangle(a, c, b);
-  shell.triangle(a, b, d);
-  shell.triangle(a, d, c);
-  shell.triangle(b, c, d);
   Surface tilted = square_fan(1.2f);  // a disk whose normal is not an axis
   tilted.positions[2][2] = 1.3f;
   struct Case {
@@ -225,8 +222,8 @@ TEST(DiskTest, OnePieceTestGivesTheFullTestsResult) {
                                 {"tilted", tilted, 0.5, true},
                                 {"thick", square_fan(1.8f), 0.5, false},
                                 {"thick within 0.9", square_fan(1.8f), 0.9, true},
-                                {"pinched", pinched, 0.5, false},
-                                {"shell", shell, 0.5, false}};
+                                {"pinched (one piece)", pinched_corners(), 0.5, false},
+                                {"shell (one piece)", tetrahedron(), 0.5, false}};
   for (const Case& k : cases) {
     SCOPED_TRACE(k.name);
     const auto full = k.surface.test(kBox2, k.epsilon);
