@@ -44,23 +44,6 @@ bool DiskTest::append_simple_loop(Component& c, const Box& box, std::vector<Vert
   return outline_.is_simple(std::span(loops).subspan(c.loop_first), positions_, box, c.normal);
 }
 
-// An edge on a box face is a loop edge, directed as its triangle has it; two leaving one
-// vertex pinch the surface there. Without a branch on whether an edge is on a face (a quarter
-// of those branches were mispredicted: cachegrind's branch simulation put them first in the
-// merge); the table is not read after a pinch.
-bool DiskTest::mark_loop_edges(const std::array<std::uint32_t, 3>& corner) {
-  bool pinched = false;
-  for (int k = 0; k < 3; ++k) {
-    const std::uint32_t a = corner[k];
-    const std::uint32_t b = corner[k == 2 ? 0 : k + 1];
-    const bool on_face = (table_.mask(a) & table_.mask(b)) != 0;
-    const std::uint32_t next = table_.next(a);
-    pinched |= on_face & (next != kNone);
-    table_.set_next(a, on_face ? b : next);
-  }
-  return pinched;
-}
-
 // The summed area vector kept as c.area, c.normal made unit; false when it is zero (the
 // component faces no one way).
 bool DiskTest::normalise(Component& c) {
@@ -99,7 +82,7 @@ bool DiskTest::test_triangles(std::span<const TriangleRun> runs, const Box& box,
       local.id = id;
       for (int k = 0; k < 3; ++k) local.corner[k] = table_.add_with_position(t[k], faces);
       table_.unite(local.corner[0], local.corner[1], local.corner[2]);
-      if (mark_loop_edges(local.corner)) {
+      if (table_.mark_loop_edges(local.corner)) {
         ++stats.rejected_topology;
         pinched_ = true;
         components_.clear();
@@ -203,8 +186,7 @@ bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
       const Triangle& t = triangles_[id];
       LocalTriangle local;
       local.id = id;
-      const P3 p0 = to_double(positions_[t[0]]);
-      local.area = cross(sub(to_double(positions_[t[1]]), p0), sub(to_double(positions_[t[2]]), p0));
+      local.area = area_vector(positions_, t);
       for (int a = 0; a < 3; ++a) c.normal[a] += local.area[a];
       local_triangles_.push_back(local);
     }
@@ -241,7 +223,7 @@ bool DiskTest::test_one_piece(std::span<const TriangleRun> runs, const Box& box,
   for (LocalTriangle& local : local_triangles_) {
     const Triangle& t = triangles_[local.id];
     for (int k = 0; k < 3; ++k) local.corner[k] = table_.add(t[k], faces);
-    if (mark_loop_edges(local.corner)) {
+    if (table_.mark_loop_edges(local.corner)) {
       ++stats.rejected_topology;
       return false;
     }

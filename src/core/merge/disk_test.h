@@ -125,9 +125,6 @@ class DiskTest {
     P3 area;
   };
   void number_components();
-  // Marks the triangle's edges on the box's faces as loop edges; returns whether one leaves a
-  // vertex that has one already (a pinch).
-  bool mark_loop_edges(const std::array<std::uint32_t, 3>& corner);
   // Its area vector kept, its normal made unit; false when the area vector is zero.
   static bool normalise(Component& c);
   // Whether a component's counts and loop make it one disk.

@@ -161,13 +161,8 @@ void DiskTriangulation::rebuild_loop(MergedDisk& part) {
     const Triangle& t = triangles_[store_.triangles[part.triangles_first + k]];
     std::array<std::uint32_t, 3> corner{};
     for (int c = 0; c < 3; ++c) corner[c] = table_.add(t[c], faces);
-    for (int c = 0; c < 3; ++c) {
-      const std::uint32_t a = corner[c];
-      const std::uint32_t b = corner[(c + 1) % 3];
-      if ((table_.mask(a) & table_.mask(b)) != 0) table_.set_next(a, b);
-    }
-    const P3 p0 = to_double(positions_[t[0]]);
-    const P3 a = cross(sub(to_double(positions_[t[1]]), p0), sub(to_double(positions_[t[2]]), p0));
+    table_.mark_loop_edges(corner);  // no pinch: the part passed the disk test
+    const P3 a = area_vector(positions_, t);
     for (int c = 0; c < 3; ++c) area[c] += a[c];
   }
   std::uint32_t start = 0;

@@ -5,6 +5,7 @@
 #include <array>
 #include <cstdint>
 #include <limits>
+#include <span>
 
 #if defined(__SSE2__)
 #include <xmmintrin.h>
@@ -23,6 +24,12 @@ inline P3 sub(const P3& a, const P3& b) { return {a[0] - b[0], a[1] - b[1], a[2]
 inline double dot(const P3& a, const P3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
 inline P3 cross(const P3& a, const P3& b) {
   return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+
+// The area vector of triangle t (its normal, twice its area long), in index space.
+inline P3 area_vector(std::span<const Position> positions, const Triangle& t) {
+  const P3 p0 = to_double(positions[t[0]]);
+  return cross(sub(to_double(positions[t[1]]), p0), sub(to_double(positions[t[2]]), p0));
 }
 
 // An index-space position in patient millimetres, up to the origin (`axes`: one index step

@@ -59,7 +59,10 @@ class MergeAsExtracted final : public detail::LayerObserver {
   // Steps 2 and 3 on the piece's surface as marching cubes left it; the merged triangles
   // into scratch.triangles.
   void finish(const PieceSurface& piece) {
-    test_new_blocks(piece.mesh, piece.cubes);  // none left, unless the piece had no layer
+    // The last cube layer ends a layer of blocks: every cube's blocks were tested.
+    if (!started_ || tested_cubes_ != piece.cubes.size()) {
+      throw std::logic_error("type merging: a piece's blocks were not all tested");
+    }
     const std::size_t vertex_room = piece.mesh.positions.capacity();
     const std::span<const Position> positions = piece.mesh.positions;
     std::vector<std::uint8_t>& state = scratch_.state;
