@@ -198,7 +198,7 @@ namespace detail {
 // The pieces' cube layers: [bounds[k], bounds[k + 1]) for k < bounds.size() − 1, from 0 to
 // `layers` (empty when layers is 0), about layers / slab_layers of them, cut where the
 // surface estimated from the volume's samples is equal (so pieces cost about the same: the cut
-// x-, y- and z-edges in every 4th row, the caps of a body cut by the volume's ends included),
+// x-, y- and z-edges in every 8th row, the caps of a body cut by the volume's ends included),
 // on the multiple of the blocks' z edge (step 1: block_cubes, or half of it on thick slices)
 // nearest in that estimate where pieces are at least two blocks high. `threads` only speeds
 // up the estimate: the bounds do not depend on it. With `vertices`, it receives per piece
