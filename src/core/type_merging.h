@@ -196,7 +196,8 @@ TriangleMesh extract_type_merged(const Volume& volume, float iso,
 namespace detail {
 
 // The pieces' cube layers: [bounds[k], bounds[k + 1]) for k < bounds.size() − 1, from 0 to
-// `layers` (empty when layers is 0), about layers / slab_layers of them, cut where the
+// `layers` (empty when layers is 0), about layers / slab_layers of them (rounded up to an even
+// count when above 1 and the layers allow it: two threads share them evenly), cut where the
 // surface estimated from the volume's samples is equal (so pieces cost about the same: the cut
 // x-, y- and z-edges in every 8th row, the caps of a body cut by the volume's ends included),
 // on the multiple of the blocks' z edge (step 1: block_cubes, or half of it on thick slices)

@@ -648,18 +648,18 @@ TEST(TypeMerging, PieceBoundsBalanceTheSurface) {
   const std::int64_t layers = detail::cube_layer_count(volume, 0.0f, kClosed);
   ASSERT_EQ(layers, 161);
   MergeOptions options;
-  options.slab_layers = 32;
+  options.slab_layers = 40;
   const std::vector<std::int64_t> bounds =
       detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 1);
   ASSERT_GE(bounds.size(), 3u);
   EXPECT_EQ(bounds.front(), 0);
   EXPECT_EQ(bounds.back(), layers);
-  EXPECT_EQ(bounds.size() - 1, 5u);  // round(161 / 32)
+  EXPECT_EQ(bounds.size() - 1, 4u);  // round(161 / 40)
   for (std::size_t k = 1; k + 1 < bounds.size(); ++k) {
     EXPECT_LT(bounds[k - 1], bounds[k]);
     EXPECT_EQ(bounds[k] % options.block_cubes, 0) << bounds[k];
   }
-  // Equal heights would cut at 32, 64, 96, 128; the empty bottom is one piece here.
+  // Equal heights would cut at 40, 80, 120; the empty bottom is one piece here.
   EXPECT_GE(bounds[1], 112);
   EXPECT_EQ(detail::piece_bounds(volume, 0.0f, kClosed, options, layers, 3), bounds);
   // On 3 mm slices over 1 mm pixels blocks are 8 × 8 × 4 cubes: cuts fall on multiples of 4.
@@ -733,10 +733,10 @@ std::vector<std::int64_t> bounds_of_32_layer_pieces(const Volume& volume, unsign
 // looked the same and the pieces had equal heights).
 TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
   const std::vector<std::int64_t> bounds =
-      bounds_of_32_layer_pieces(column_through_every_slice(160), 2);
-  ASSERT_EQ(bounds.size() - 1, 5u);
+      bounds_of_32_layer_pieces(column_through_every_slice(192), 2);
+  ASSERT_EQ(bounds.size() - 1, 6u);
   const std::int64_t first = bounds[1] - bounds[0];
-  const std::int64_t last = bounds[5] - bounds[4];
+  const std::int64_t last = bounds[6] - bounds[5];
   EXPECT_LT(first, 32);
   EXPECT_LT(last, 32);
   for (std::size_t k = 1; k + 2 < bounds.size(); ++k) {
@@ -745,17 +745,36 @@ TEST(TypeMerging, PieceBoundsCountTheCapsOfACutBody) {
   }
 }
 
+// An odd count of pieces is rounded up to even, so two threads share them evenly (nine pieces
+// left one thread working alone on the last): 289 layers make 10 pieces of 32 layers, not 9;
+// a volume of under 1.5 pieces stays one piece, and pieces of one layer stay one a layer.
+TEST(TypeMerging, PieceCountIsEvenSoTwoThreadsShareThem) {
+  const std::vector<std::int64_t> nine = bounds_of_32_layer_pieces(column_through_every_slice(288), 2);
+  EXPECT_EQ(nine.size() - 1, 10u);
+  const std::vector<std::int64_t> four = bounds_of_32_layer_pieces(column_through_every_slice(128), 1);
+  EXPECT_EQ(four.size() - 1, 4u);
+  const std::vector<std::int64_t> one = bounds_of_32_layer_pieces(column_through_every_slice(40), 1);
+  EXPECT_EQ(one, (std::vector<std::int64_t>{0, 41}));
+  MergeOptions options;
+  options.slab_layers = 1;
+  const Volume odd = column_through_every_slice(20);
+  const std::int64_t layers = detail::cube_layer_count(odd, 0.0f, kClosed);
+  ASSERT_EQ(layers % 2, 1);
+  EXPECT_EQ(detail::piece_bounds(odd, 0.0f, kClosed, options, layers, 1).size() - 1,
+            static_cast<std::size_t>(layers));
+}
+
 // On 3 mm slices (blocks 8 × 8 × 4 cubes) cuts fall on multiples of 4, the blocks' z edge,
 // not of 8 (block_cubes), so pieces can be nearer equal: a column through every slice, whose
-// layers cost the same but for the caps, cut into three pieces. The same volume on isotropic
-// voxels (blocks of 8 along z) is cut on multiples of 8.
+// layers cost the same but for the caps, cut into four pieces of about 28 layers. The same
+// volume on isotropic voxels (blocks of 8 along z) is cut on multiples of 8.
 TEST(TypeMerging, PieceBoundsSnapToTheBlocksZEdge) {
-  const Volume volume = column_through_every_slice(96);
+  const Volume volume = column_through_every_slice(112);
   const std::vector<std::int64_t> cubes = bounds_of_32_layer_pieces(volume, 1);
-  ASSERT_EQ(cubes.size(), 4u);
+  ASSERT_EQ(cubes.size(), 5u);
   for (std::size_t k = 1; k + 1 < cubes.size(); ++k) EXPECT_EQ(cubes[k] % 8, 0) << cubes[k];
   const std::vector<std::int64_t> thick = bounds_of_32_layer_pieces(on_3mm_slices(volume), 1);
-  ASSERT_EQ(thick.size(), 4u);
+  ASSERT_EQ(thick.size(), 5u);
   bool off_eight = false;
   for (std::size_t k = 1; k + 1 < thick.size(); ++k) {
     EXPECT_EQ(thick[k] % 4, 0) << thick[k];
