@@ -1,8 +1,12 @@
 // AtomicFile: write to a temporary file beside the target, fsync, then rename over it.
 //
 // An interrupted run leaves either the previous file or none under the final name, never a
-// truncated one. The temporary name starts with '.' and ends in '.partial' so that a left-over
-// from a killed process is recognisable; it is removed on every error path we control.
+// truncated one. The temporary name is '.' + the target's name + six characters + '.partial';
+// it is removed on every error path we control. A killed process cannot remove its own, so
+// the writer holds an exclusive flock(2) on it while it writes (released by the kernel when
+// the process dies), and every new AtomicFile for the same target removes the temporary files
+// of that name no process holds: a killed run's left-over goes with the next write of its
+// target. Where the file system has no locks, nothing is removed.
 #pragma once
 
 #include <cstdio>

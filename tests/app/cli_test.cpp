@@ -18,6 +18,7 @@
 #include <sstream>
 
 #include "ct_writer/ct_writer.h"
+#include "support/scratch_files.h"
 #include "support/test_data.h"
 
 namespace {
@@ -44,11 +45,7 @@ CommandRun run(const std::string& arguments) {
 
 // Per process: two test runs on one machine (or ctest's parallel jobs) never share a folder.
 fs::path fresh_dir(const std::string& name) {
-  const fs::path dir = fs::temp_directory_path() /
-                       ("typemerge_cli_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return typemerge::test::fresh_dir(name, "typemerge_cli_");
 }
 
 // A 20×16×10 series with a bright ball, written with patient data that must never show up.
@@ -483,16 +480,17 @@ namespace {
 // nothing or a complete, valid surface — never a truncated file.
 TEST(Cli, KilledRunsLeaveNoPartialOutput) {
   const fs::path out = fresh_dir("kill_out");
-  // The killed runs leave their temporary files (about 0.5 GB in all: nothing runs after
-  // SIGKILL to remove them), so the folder goes when the test ends, however it ends.
-  struct RemovedAtEnd {
-    fs::path dir;
-    ~RemovedAtEnd() {
-      std::error_code ignored;
-      fs::remove_all(dir, ignored);
-    }
-  } const removed_at_end{out};
   const fs::path stl = out / "bone.stl";
+  // A killed run leaves its temporary file (nothing runs after SIGKILL); the next run that
+  // writes the same output removes it, so there is never more than one.
+  auto left_over = [&] {
+    int count = 0;
+    for (const auto& entry : fs::directory_iterator(out)) {
+      const std::string name = entry.path().filename().string();
+      count += name.rfind(".bone.stl.", 0) == 0 && name.ends_with(".partial");
+    }
+    return count;
+  };
   const std::string sample = std::string(TYPEMERGE_SOURCE_DIR) + "/sample_series";
   auto start = [&] {
     const pid_t pid = fork();
@@ -516,6 +514,7 @@ TEST(Cli, KilledRunsLeaveNoPartialOutput) {
   const auto complete_size = fs::file_size(stl);
 
   int killed = 0;
+  int killed_while_writing = 0;
   for (int attempt = 0; attempt < 50; ++attempt) {
     fs::remove(stl);
     const pid_t pid = start();
@@ -528,8 +527,15 @@ TEST(Cli, KilledRunsLeaveNoPartialOutput) {
       const auto stats = nlohmann::json::parse(run("stats --json " + stl.string()).out);
       EXPECT_TRUE(stats["closed_manifold"].get<bool>());
     }
+    const int left = left_over();
+    EXPECT_LE(left, 1) << "earlier killed runs' temporary files were not removed";
+    killed_while_writing += left;
   }
   EXPECT_GT(killed, 0);
+  EXPECT_GT(killed_while_writing, 0);
+  waitpid(start(), &status, 0);  // a run that completes removes the last left-over
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  EXPECT_EQ(left_over(), 0);
 }
 
 }  // namespace

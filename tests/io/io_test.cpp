@@ -1,9 +1,13 @@
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "core/mesh_checks.h"
 #include "io/atomic_file.h"
@@ -83,6 +87,48 @@ TEST(AtomicFile, NothingAppearsUntilCommitAndNothingStaysOnAbort) {
   file.commit();
   EXPECT_EQ(read_file_bytes(dir / "out.bin"), "new content");
   EXPECT_THROW(AtomicFile(dir / "missing_folder" / "x"), std::runtime_error);
+}
+
+// The temporary files of a target no process holds (a killed run's) go when the target is
+// written again; one a live writer holds stays, and so do names of other targets or of
+// another form.
+TEST(AtomicFile, AKilledRunsTemporaryFileGoesWithTheNextWrite) {
+  const fs::path dir = fresh_dir("atomic_stale");
+  const std::vector<std::string> kept_names = {".other.bin.ghi789.partial", ".out.bin.partial",
+                                               "out.bin.jkl012.partial", ".out.bin.mno345"};
+  for (const std::string& name : kept_names) std::ofstream(dir / name) << "not ours";
+  std::ofstream(dir / ".out.bin.abc123.partial") << "killed";
+  std::ofstream(dir / ".out.bin.def456.partial") << "live";
+  const int live = ::open((dir / ".out.bin.def456.partial").c_str(), O_RDONLY);
+  ASSERT_GE(live, 0);
+  ASSERT_EQ(::flock(live, LOCK_EX | LOCK_NB), 0);
+  auto temporaries = [&] {
+    std::vector<std::string> names;
+    for (const auto& entry : fs::directory_iterator(dir)) {
+      const std::string name = entry.path().filename().string();
+      if (name.rfind(".out.bin.", 0) == 0 && name.size() == 23 && name.ends_with(".partial")) {
+        names.push_back(name);
+      }
+    }
+    return names;
+  };
+  {
+    AtomicFile file(dir / "out.bin");
+    EXPECT_FALSE(fs::exists(dir / ".out.bin.abc123.partial"));
+    EXPECT_TRUE(fs::exists(dir / ".out.bin.def456.partial"));
+    EXPECT_EQ(temporaries().size(), 2u);  // the live one and this writer's own
+    file.write("new");
+    file.commit();
+  }
+  EXPECT_EQ(read_file_bytes(dir / "out.bin"), "new");
+  EXPECT_EQ(temporaries(), std::vector<std::string>{".out.bin.def456.partial"});
+  ::close(live);  // its writer "dies": the next write removes it
+  {
+    AtomicFile file(dir / "out.bin");
+    file.commit();
+  }
+  EXPECT_TRUE(temporaries().empty());
+  for (const std::string& name : kept_names) EXPECT_TRUE(fs::exists(dir / name)) << name;
 }
 
 TEST(Nrrd, HeaderCarriesTheShearedGeometryAndSamplesFollow) {
