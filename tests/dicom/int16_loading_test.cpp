@@ -14,6 +14,7 @@
 #include "ct_writer/ct_writer.h"
 #include "dicom/series_loader.h"
 #include "dicom/series_scan.h"
+#include "support/scratch_files.h"
 
 namespace typemerge::dicom {
 namespace {
@@ -41,10 +42,7 @@ struct Loaded {
 
 Loaded write_and_load(const SeriesLayout& l, const std::string& name,
                       const std::function<void(ct_writer::CtSliceSpec&)>& edit = {}) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("typemerge_int16_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = test::fresh_dir(name, "typemerge_int16_");
   auto specs = ct_writer::make_axial_series(l);
   for (std::size_t k = 0; k < specs.size(); ++k) {
     if (edit) edit(specs[k]);

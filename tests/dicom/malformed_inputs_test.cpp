@@ -12,6 +12,7 @@
 #include "ct_writer/ct_writer.h"
 #include "dicom/pixel_reader.h"
 #include "dicom/series_loader.h"
+#include "support/scratch_files.h"
 
 namespace typemerge::dicom {
 namespace {
@@ -322,10 +323,7 @@ class MalformedInput : public ::testing::TestWithParam<Case> {};
 
 TEST_P(MalformedInput, GivesItsDocumentedOutcome) {
   const Case& c = GetParam();
-  const fs::path dir = fs::temp_directory_path() /
-                       ("typemerge_malformed_" + std::to_string(::getpid()) + "_" + c.name);
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = test::fresh_dir(c.name, "typemerge_malformed_");
   c.make(dir);
   ScanOptions options;
   if (c.options) c.options(options);

@@ -10,6 +10,7 @@
 #include "dicom/pixel_reader.h"
 #include "dicom/series_loader.h"
 #include "support/nifti_reader.h"
+#include "support/scratch_files.h"
 #include "support/test_data.h"
 
 namespace typemerge::dicom {
@@ -18,10 +19,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path run_dcm2niix(const fs::path& input, const std::string& name) {
-  const fs::path out =
-      fs::temp_directory_path() / ("typemerge_dcm2niix_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(out);
-  fs::create_directories(out);
+  const fs::path out = test::fresh_dir(name, "typemerge_dcm2niix_");
   const std::string command = "dcm2niix -z n -b n -f %s_%j -o '" + out.string() + "' '" +
                               input.string() + "' > '" + (out / "log.txt").string() + "' 2>&1";
   EXPECT_EQ(std::system(command.c_str()), 0) << "dcm2niix failed or is not installed: " << command;
