@@ -125,9 +125,9 @@ struct MergeOptions {
   // Blocks shaped by the grid's spacing (step 1 above); false: cubes of block_cubes halved
   // along every axis at once, whatever the spacing.
   bool blocks_follow_spacing = true;
-  // Cube layers per piece on average (0 = one piece): about layers / slab_layers pieces, cut
-  // where the estimated surface below is equal (detail::piece_bounds); blocks are aligned to
-  // the piece.
+  // Cube layers per piece on average (0 = one piece): about layers / slab_layers pieces (an
+  // even number where more than one), cut where the estimated surface below is equal
+  // (detail::piece_bounds); blocks are aligned to the piece.
   unsigned slab_layers = 32;
   // Pieces made at once; 0 = hardware concurrency.
   unsigned threads = 1;
