@@ -10,6 +10,7 @@
 
 #include "ct_writer/ct_writer.h"
 #include "dicom/header_reader.h"
+#include "support/scratch_files.h"
 
 namespace {
 
@@ -17,8 +18,14 @@ namespace fs = std::filesystem;
 using namespace typemerge::dicom;
 namespace ct_writer = typemerge::ct_writer;
 
+// This process's scratch folder (removed when it ends).
+const fs::path& scratch() {
+  static const fs::path dir = typemerge::test::fresh_dir("file_kind");
+  return dir;
+}
+
 fs::path write_temp(const std::string& name, const std::string& bytes) {
-  const fs::path file = fs::temp_directory_path() / ("typemerge_file_kind_" + name);
+  const fs::path file = scratch() / name;
   std::ofstream(file, std::ios::binary)
       .write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   return file;
@@ -65,7 +72,7 @@ TEST(FileKind, BareDataSetsAreStillRead) {
       ct_writer::CtSliceSpec spec;
       spec.transfer_syntax = syntax;
       spec.container = container;
-      const fs::path file = fs::temp_directory_path() / "typemerge_file_kind_bare.dcm";
+      const fs::path file = scratch() / "bare.dcm";
       ct_writer::write_ct_slice(spec, file);
       const HeaderReadResult read = read_headers(file, {});
       EXPECT_EQ(read.kind, FileKind::ct_image) << read.skip_reason;
@@ -82,7 +89,7 @@ TEST(FileKind, TheRefusedModalityIsGivenOnlyWhenItAloneRefusedTheFile) {
   ct_writer::CtSliceSpec mr;
   mr.sop_class_uid = "1.2.840.10008.5.1.4.1.1.4";  // MR Image Storage
   mr.modality = "MR";
-  const fs::path file = fs::temp_directory_path() / "typemerge_file_kind_mr";
+  const fs::path file = scratch() / "mr";
   ct_writer::write_ct_slice(mr, file);
   HeaderReadResult read = read_headers(file, {});
   EXPECT_EQ(read.kind, FileKind::other_image);

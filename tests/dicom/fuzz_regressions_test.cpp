@@ -14,6 +14,7 @@
 #include "dicom/series_loader.h"
 #include "dicom/series_scan.h"
 #include "dicom/slice_geometry.h"
+#include "support/scratch_files.h"
 
 namespace {
 
@@ -28,8 +29,14 @@ std::string from_hex(const std::string& hex) {
   return bytes;
 }
 
+// This process's scratch folder (removed when it ends).
+const fs::path& scratch() {
+  static const fs::path dir = typemerge::test::fresh_dir("fuzz_regression");
+  return dir;
+}
+
 fs::path write_temp(const std::string& name, const std::string& bytes) {
-  const fs::path file = fs::temp_directory_path() / ("typemerge_fuzz_regression_" + name);
+  const fs::path file = scratch() / name;
   std::ofstream(file, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
   return file;
 }
@@ -292,7 +299,7 @@ TEST(FuzzRegressions, ElementLongerThanTheFileIsRefused) {
   typemerge::ct_writer::CtSliceSpec spec;
   spec.transfer_syntax = typemerge::ct_writer::TransferSyntax::implicit_little;
   spec.patient_name = "Length^Canary";  // 14 bytes with its padding
-  const fs::path file = fs::temp_directory_path() / "typemerge_fuzz_regression_length.dcm";
+  const fs::path file = scratch() / "length.dcm";
   typemerge::ct_writer::write_ct_slice(spec, file);
   std::ifstream in(file, std::ios::binary);
   std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
