@@ -58,13 +58,14 @@ namespace detail {
 // between its two slices, where a padding slice (close_borders) is outside everywhere, so the
 // caps that close a body cut by the volume's ends count as the large flat surfaces they are
 // (counting x-edges alone missed them: the synthetic body at −500 HU scaled 1.51× on two
-// threads, its first and last pieces holding most of the surface); plus one per layer. It depends on the volume alone, so the cuts (and
-// the output) are the same for every thread count. Where pieces are at least two blocks high,
-// cuts fall on multiples of the blocks' edge along z (block_dims: 4 on 3 mm slices over 1 mm
-// pixels, else block_cubes), so every piece but the last is whole blocks high. (Multiples of
-// block_cubes, 8 layers, left the abdomen's four pieces at 25 / 29 / 23 / 28 k of estimated
-// work at 300 HU and 74 / 78 / 74 / 88 k at −500 HU: their times on one thread, 95 / 126 /
-// 100 / 98 and 206 / 194 / 182 / 283 ms, capped two threads at 1.87 and 1.77 times one.)
+// threads, its first and last pieces holding most of the surface); plus one per layer. It
+// depends on the volume alone, so the cuts (and the output) are the same for every thread
+// count. Where pieces are at least two blocks high, cuts fall on multiples of the blocks' edge
+// along z (block_dims: 4 on 3 mm slices over 1 mm pixels, else block_cubes), so every piece
+// but the last is whole blocks high. (Multiples of block_cubes, 8 layers, left the abdomen's
+// four pieces at 25 / 29 / 23 / 28 k of estimated work at 300 HU and 74 / 78 / 74 / 88 k at
+// −500 HU: their times on one thread, 95 / 126 / 100 / 98 and 206 / 194 / 182 / 283 ms, capped
+// two threads at 1.87 and 1.77 times one.)
 std::vector<std::int64_t> piece_bounds(const Volume& volume, float iso, const ExtractOptions& extract,
                                        const MergeOptions& options, std::int64_t layers,
                                        unsigned threads, std::vector<double>* vertices) {

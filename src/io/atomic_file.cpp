@@ -17,12 +17,14 @@ std::runtime_error io_error(const std::string& what, const std::filesystem::path
   return std::runtime_error(what + " " + path.string() + ": " + std::strerror(errno));
 }
 
+constexpr std::string_view kRandom = ".XXXXXX";  // mkstemps' six characters, after a dot
 constexpr std::string_view kSuffix = ".partial";
 
 // Whether `name` is one of target's temporary names: "." + target + "." + 6 characters +
 // ".partial".
 bool is_temporary_of(std::string_view name, std::string_view target) {
-  return name.size() == 1 + target.size() + 7 + kSuffix.size() && name.front() == '.' &&
+  return name.size() == 1 + target.size() + kRandom.size() + kSuffix.size() &&
+         name.front() == '.' &&
          name.substr(1, target.size()) == target && name[1 + target.size()] == '.' &&
          name.substr(name.size() - kSuffix.size()) == kSuffix;
 }
@@ -64,7 +66,7 @@ AtomicFile::AtomicFile(const std::filesystem::path& target) : target_(target) {
   // Built by appending: GCC 12 at -O3 reports a false -Wrestrict on "." + std::string.
   std::string name = ".";
   name += target.filename().string();
-  name += ".XXXXXX";
+  name += kRandom;
   name += kSuffix;
   int descriptor = -1;
   // Locked at once; a sweeping writer that took the lock first has removed (or is removing)
