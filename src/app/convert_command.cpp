@@ -578,14 +578,14 @@ int run_convert(const ConvertOptions& options, std::ostream& log) {
   // finishing) overlap the other's extraction. Results are used in order, so outputs, report
   // and messages do not depend on scheduling.
   for (const SurfaceSpec& spec : specs) check_tissue(volume, loaded.min_hu, loaded.max_hu, spec);
+  // Nothing here reads the volume after its surfaces: the last of them to read it frees it
+  // (make_surface). Declared before `pending`, whose futures wait for their surfaces.
+  VolumeReaders readers(volume, specs.size());
   std::vector<std::future<SurfaceResult>> pending;
   for (const SurfaceSpec& spec : specs) {
     progress("extracting and finishing " + spec.label);
-    // One surface: nothing reads the volume after it, so its extraction may release the
-    // slices it has passed (make_surface).
-    core::Volume* releasable = specs.size() == 1 ? &volume : nullptr;
-    auto make = [&volume, &pipeline, spec, releasable] {
-      return make_surface(volume, spec, pipeline, releasable);
+    auto make = [&volume, &pipeline, spec, &readers] {
+      return make_surface(volume, spec, pipeline, &readers);
     };
     try {
       pending.push_back(std::async(std::launch::async, make));

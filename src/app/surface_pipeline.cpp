@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <optional>
+#include <stdexcept>
 
 #include "core/bounded_reduction.h"
 #include "core/inner_wall.h"
@@ -139,8 +140,40 @@ void hollow_surface(SurfaceResult& result, const core::Volume& volume, const Sur
 
 }  // namespace
 
+VolumeReaders::VolumeReaders(core::Volume& volume, std::size_t surfaces)
+    : volume_(volume), surfaces_(surfaces), said_(static_cast<std::size_t>(volume.size().nz), 0) {}
+
+void VolumeReaders::slices_read(std::int64_t begin, std::int64_t end) {
+  const std::lock_guard lock(mutex_);
+  const auto nz = static_cast<std::int64_t>(said_.size());
+  begin = std::clamp<std::int64_t>(begin, 0, nz);
+  end = std::clamp<std::int64_t>(end, begin, nz);
+  auto all_said = [&](std::int64_t k) { return said_[static_cast<std::size_t>(k)] == surfaces_; };
+  for (std::int64_t k = begin; k < end;) {
+    while (k < end && ++said_[static_cast<std::size_t>(k)] != surfaces_) ++k;
+    if (k == end) break;
+    std::int64_t last = k + 1;  // slices [k, last) all said now
+    while (last < end && ++said_[static_cast<std::size_t>(last)] == surfaces_) ++last;
+    // With a neighbour freed before, so that the pages a slice shares with it go too.
+    volume_.release_slices(k > 0 && all_said(k - 1) ? k - 1 : k,
+                           last < nz && all_said(last) ? last + 1 : last);
+    k = last + 1;
+  }
+}
+
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
-                           const PipelineOptions& options, core::Volume* releasable) {
+                           const PipelineOptions& options, VolumeReaders* readers) {
+  if (readers != nullptr && &readers->volume() != &volume) {
+    throw std::logic_error("make_surface: the readers are of another volume");
+  }
+  // This surface's last read of the volume: every slice not said yet, said (VolumeReaders).
+  bool read_all = false;
+  const auto reads_done = [&] {
+    if (readers != nullptr && !read_all) readers->slices_read(0, volume.size().nz);
+    read_all = true;
+  };
+  // Nothing of this surface reads the volume after its extraction (--hollow does).
+  const bool last_read_in_extraction = options.hollow_mm == 0;
   SurfaceResult result;
   core::TriangleMesh marching_cubes;  // for measure_distance, with tm
   core::ExtractOptions extract;
@@ -159,11 +192,18 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     if (window) {
       field = core::window_field(volume, static_cast<float>(spec.lo),
                                  static_cast<float>(*spec.hi));
+      if (last_read_in_extraction) reads_done();  // the extraction reads the field
     }
     const core::Volume& source = window ? field : volume;
     const float iso = window ? 0.0f : static_cast<float>(spec.lo);
     Details details;
     const FinishOptions& finish = options.finish;
+    // For a reduction: said before its collapses, unless the distance measurement reads the
+    // volume after it.
+    core::MergeOptions reduction;
+    if (!window && last_read_in_extraction && !options.measure_distance) {
+      reduction.slices_done = [&](std::int64_t, std::int64_t) { reads_done(); };
+    }
     if (options.algorithm == "tm") {
       core::MergeStats stats;
       if (finish.reduce_to_triangles > 0) {
@@ -173,7 +213,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
                 ? finish.max_error_mm
                 : core::kReductionCapSteps * std::min({g.spacing(0), g.spacing(1), g.spacing(2)});
         core::ReductionResult reduced = core::extract_type_merged_to_count(
-            source, iso, extract, {}, finish.reduce_to_triangles, cap);
+            source, iso, extract, reduction, finish.reduce_to_triangles, cap);
         mesh = std::move(reduced.mesh);
         stats = reduced.stats;
         result.reduction = ReductionSummary{finish.reduce_to_triangles, mesh.triangles.size(),
@@ -187,7 +227,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         }
       } else if (finish.max_error_mm > 0 && !finish.merge_only) {
         core::ReductionResult reduced = core::extract_type_merged_within(
-            source, iso, extract, {}, finish.max_error_mm);
+            source, iso, extract, reduction, finish.max_error_mm);
         mesh = std::move(reduced.mesh);
         stats = reduced.stats;
         result.reduction = ReductionSummary{0, mesh.triangles.size(), finish.max_error_mm,
@@ -196,12 +236,13 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       } else {
         core::MergeOptions merge;
         merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
-        if (releasable == &volume && !window && options.hollow_mm == 0 &&
+        if (readers != nullptr && !window && last_read_in_extraction &&
             !options.measure_distance) {
-          merge.slices_done = [releasable](std::int64_t begin, std::int64_t end) {
-            releasable->release_slices(begin, end);
+          merge.slices_done = [readers](std::int64_t begin, std::int64_t end) {
+            readers->slices_read(begin, end);
           };
           merge.return_idle_pages = true;
+          read_all = true;  // the extraction says every slice
         }
         mesh = core::extract_type_merged(source, iso, extract, merge, &stats);
         if (finish.max_error_mm > 0) {
@@ -235,6 +276,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         result.distance = DistanceSummary{};  // it is marching cubes' surface
       }
     }
+    if (last_read_in_extraction) reads_done();
     return StepOutput{details, std::nullopt};
   });
 
@@ -250,6 +292,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
   }
   marching_cubes = {};
   if (options.hollow_mm > 0 && !result.mesh.empty()) hollow_surface(result, volume, spec, options);
+  reads_done();
   const bool finished = (options.finish.enabled || options.hollow_mm > 0) && !result.mesh.empty();
   if (finished && !result.steps.back().check.closed_manifold()) {
     const auto problems = mesh::check_validity(result.mesh).problems();

@@ -4,7 +4,9 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <utility>
@@ -113,14 +115,34 @@ struct SurfaceResult {
   std::vector<std::string> warnings;
 };
 
-// `releasable`: the same volume, given when nothing reads its samples after this surface is
-// made (its caller's last use). Where no later step of this surface reads them either (type
-// merging without a reduction, a window, --hollow or the distance measurement), the
-// extraction returns the volume's slices to the operating system once it has read them
-// (core::MergeOptions::slices_done), so that the volume's memory shrinks as the surface
-// grows (they read as zeros afterwards), and idle scratch gives its pages back
-// (MergeOptions::return_idle_pages). The surface is the same either way.
+// The surfaces made from one volume, when the caller reads its samples no more once they are
+// made: each surface says which slices it has read for the last time, and a slice that every
+// surface has said is returned to the operating system (Volume::release_slices: its samples
+// read as zeros afterwards, the geometry stays). So the volume shrinks while the surfaces are
+// extracted, and finishing, writing and a reduction's collapses do not hold it. Thread-safe:
+// the surfaces may be made at once, each on several threads.
+class VolumeReaders {
+ public:
+  VolumeReaders(core::Volume& volume, std::size_t surfaces);
+  core::Volume& volume() const { return volume_; }
+  // Slices [begin, end) one surface reads no more. A surface says each slice at most once.
+  void slices_read(std::int64_t begin, std::int64_t end);
+
+ private:
+  core::Volume& volume_;
+  const std::size_t surfaces_;
+  std::mutex mutex_;
+  std::vector<std::size_t> said_;  // per slice, by how many surfaces
+};
+
+// `readers`: the readers of this same volume, this surface among them (null: the volume is
+// kept). Type merging without a reduction, a window, --hollow or the distance measurement says
+// its slices as it passes them (core::MergeOptions::slices_done; its idle scratch then gives
+// its pages back too, MergeOptions::return_idle_pages); any other surface says them all after
+// its last read: after extraction (for a window, once its field is made), before a
+// reduction's collapses (core/bounded_reduction.h), or after --hollow, which reads the volume
+// again. The surface is the same either way.
 SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
-                           const PipelineOptions& options, core::Volume* releasable = nullptr);
+                           const PipelineOptions& options, VolumeReaders* readers = nullptr);
 
 }  // namespace typemerge::app

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <functional>
 #include <optional>
 #include <stdexcept>
 #include <utility>
@@ -50,6 +52,24 @@ CollapseStats collapse_against(const TriangleMesh& reference, const IndexToPatie
   return stats;
 }
 
+// options.slices_done, said once with every slice when the volume is read no more
+// (bounded_reduction.h); never passed to the extractions, which read the volume again.
+class ReadsDone {
+ public:
+  ReadsDone(const Volume& volume, MergeOptions& options)
+      : tell_(std::move(options.slices_done)), slices_(volume.size().nz) {
+    options.slices_done = nullptr;
+  }
+  void operator()() {
+    if (tell_ && slices_ > 0) tell_(0, slices_);
+    tell_ = nullptr;
+  }
+
+ private:
+  std::function<void(std::int64_t, std::int64_t)> tell_;
+  std::int64_t slices_;
+};
+
 }  // namespace
 
 CollapseStats collapse_to_count(const Volume& volume, float iso, const ExtractOptions& extract,
@@ -66,16 +86,19 @@ ReductionResult extract_type_merged_within(const Volume& volume, float iso,
   }
   ReductionResult result;
   MergeOptions at = options;
+  ReadsDone reads_done(volume, at);
   at.epsilon_mm = bound_mm;
   result.mesh = extract_type_merged(volume, iso, extract, at, &result.stats);
   result.tries = 1;
   result.bound_mm = bound_mm;
   result.target_met = true;  // no count asked
   if (!result.mesh.triangles.empty()) {
-    result.collapse =
-        collapse_against(reference_surface(volume, iso, extract), volume.geometry(), result.mesh,
-                         {bound_mm, 0, kLocalErrorShare * bound_mm, true});
+    const TriangleMesh reference = reference_surface(volume, iso, extract);
+    reads_done();
+    result.collapse = collapse_against(reference, volume.geometry(), result.mesh,
+                                       {bound_mm, 0, kLocalErrorShare * bound_mm, true});
   }
+  reads_done();
   return result;
 }
 
@@ -88,8 +111,10 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
   }
   const auto low_enough = static_cast<std::size_t>(std::ceil(0.99 * static_cast<double>(target)));
   ReductionResult result;
+  MergeOptions without_reads_done = options;
+  ReadsDone reads_done(volume, without_reads_done);
   auto run = [&](double bound) {
-    MergeOptions at = options;
+    MergeOptions at = without_reads_done;
     at.epsilon_mm = bound;
     Try t;
     t.bound = bound;
@@ -98,6 +123,7 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
     return t;
   };
   auto finish = [&](Try&& t) {
+    reads_done();
     result.bound_mm = t.bound;
     result.target_met = t.mesh.triangles.size() <= target && t.mesh.triangles.size() >= low_enough;
     result.mesh = std::move(t.mesh);
@@ -117,6 +143,7 @@ ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
     for (const double bound : {0.5 * cap_mm, cap_mm}) {
       Try start = bound == cap_mm ? std::move(at_cap) : run(bound);
       if (!reference) reference = reference_surface(volume, iso, extract);
+      reads_done();  // the cap's merge is made: no try reads the volume after this one
       result.collapse =
           collapse_against(*reference, volume.geometry(), start.mesh, {bound, target});
       if (start.mesh.triangles.size() <= target || bound == cap_mm) return finish(std::move(start));

@@ -71,6 +71,12 @@ ReductionResult extract_type_merged_within(const Volume& volume, float iso,
                                            const MergeOptions& options, double bound_mm);
 
 // `options` gives everything but epsilon_mm (its epsilon_voxels is ignored). cap_mm > 0.
+// For both functions, options.slices_done (when set) is called once, with every slice
+// [0, nz), as soon as the volume is read no more: before the collapses, which take most of
+// a reduction's time and memory, or else before returning. The extractions never call it (each
+// try reads the whole volume), so a holder that releases the slices it names
+// (Volume::release_slices) gets the same surface with the volume's memory freed for the
+// collapses.
 // Throws std::invalid_argument for target 0 or cap_mm not finite and positive.
 ReductionResult extract_type_merged_to_count(const Volume& volume, float iso,
                                              const ExtractOptions& extract,

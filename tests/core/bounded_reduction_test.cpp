@@ -8,9 +8,12 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <set>
 #include <stdexcept>
+#include <utility>
+#include <vector>
 
 #include "core/mesh_checks.h"
 #include "core/mesh_distance.h"
@@ -133,6 +136,51 @@ TEST(BoundedReduction, WithinABoundCollapsesTheMergeLocallyLimited) {
                std::invalid_argument);
   EXPECT_THROW(extract_type_merged_within(volume, 0.0f, one_thread(), {}, INFINITY),
                std::invalid_argument);
+}
+
+// options.slices_done is said once, with every slice, when the volume is read no more: the
+// callback wipes the samples (every one outside), and each reduction's surface is still the
+// one made from the whole volume, so no extraction came after it. Each kind of end: the bound
+// alone (its collapses), a count reached by bisection, and one out of the merge's reach (the
+// collapses at half the cap, then at the cap).
+TEST(BoundedReduction, SaysOnceWhenTheVolumeIsReadNoMore) {
+  const Volume volume = blobs();
+  using Reduce = std::function<ReductionResult(const Volume&, const MergeOptions&)>;
+  const std::vector<std::pair<const char*, Reduce>> reductions{
+      {"within 0.5 mm",
+       [](const Volume& v, const MergeOptions& o) {
+         return extract_type_merged_within(v, 0.0f, one_thread(), o, 0.5);
+       }},
+      {"a third of the triangles",
+       [](const Volume& v, const MergeOptions& o) {
+         const std::size_t mc = extract_isosurface(v, 0.0f, one_thread()).triangles.size();
+         return extract_type_merged_to_count(v, 0.0f, one_thread(), o, mc / 3, 8.0);
+       }},
+      {"out of reach",
+       [](const Volume& v, const MergeOptions& o) {
+         return extract_type_merged_to_count(v, 0.0f, one_thread(), o, 10, 1.0);
+       }},
+  };
+  for (const auto& [name, reduce] : reductions) {
+    SCOPED_TRACE(name);
+    const ReductionResult kept = reduce(volume, {});
+    Volume wiped = volume;
+    int calls = 0;
+    MergeOptions options;
+    options.slices_done = [&](std::int64_t begin, std::int64_t end) {
+      ++calls;
+      EXPECT_EQ(begin, 0);
+      EXPECT_EQ(end, wiped.size().nz);
+      std::fill(wiped.samples().begin(), wiped.samples().end(), -1.0f);
+    };
+    const ReductionResult r = reduce(wiped, options);
+    EXPECT_EQ(calls, 1);
+    EXPECT_EQ(std::as_const(wiped).at(16, 16, 16), -1.0f);
+    EXPECT_GT(r.mesh.triangles.size(), 0u);
+    EXPECT_EQ(r.mesh.triangles, kept.mesh.triangles);
+    EXPECT_EQ(r.mesh.positions, kept.mesh.positions);
+    EXPECT_EQ(r.tries, kept.tries);
+  }
 }
 
 TEST(BoundedReduction, RejectsBadArguments) {
