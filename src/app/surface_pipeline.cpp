@@ -262,7 +262,11 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
         details.emplace_back("collapses", std::to_string(result.reduction->collapses));
       }
     } else {
-      mesh = core::extract_isosurface(source, iso, extract);
+      core::ExtractOptions freeing = extract;
+      if (!window && last_read_in_extraction) {
+        freeing.slices_done = [&](std::int64_t, std::int64_t) { reads_done(); };
+      }
+      mesh = core::extract_isosurface(source, iso, freeing);
     }
     core::to_patient(mesh, volume.geometry());
     if (options.measure_distance) {

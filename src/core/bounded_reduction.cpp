@@ -24,7 +24,9 @@ struct Try {
 
 // Marching cubes' surface of the volume in patient mm: what the collapses are judged against.
 TriangleMesh reference_surface(const Volume& volume, float iso, const ExtractOptions& extract) {
-  TriangleMesh reference = extract_isosurface(volume, iso, extract);
+  ExtractOptions silent = extract;
+  silent.slices_done = nullptr;  // a reduction says it through MergeOptions::slices_done
+  TriangleMesh reference = extract_isosurface(volume, iso, silent);
   to_patient(reference, volume.geometry());
   return reference;
 }

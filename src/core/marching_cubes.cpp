@@ -827,7 +827,10 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
   const unsigned threads = detail::resolve_threads(options.threads);
 
   const Index layers = Extractor(volume, iso, options).layers();
-  if (layers == 0) return {};
+  if (layers == 0) {
+    if (options.slices_done && volume.size().nz > 0) options.slices_done(0, volume.size().nz);
+    return {};
+  }
   // Slabs of at least kMinSlabLayers layers (the shared slice is classified twice), a few per
   // thread so that uneven layers (bone in a few slices) still balance.
   constexpr Index kMinSlabLayers = 8;
@@ -841,6 +844,7 @@ TriangleMesh extract_isosurface(const Volume& volume, float iso, const ExtractOp
     const Index slab = static_cast<Index>(k);
     slabs[k].run(first_layer(slab), first_layer(slab + 1));
   });
+  if (options.slices_done) options.slices_done(0, volume.size().nz);
   if (slab_count == 1) {
     if (options.stats != nullptr) *options.stats = slabs[0].stats();
     if (options.cubes != nullptr) *options.cubes = std::move(slabs[0].cubes());

@@ -17,6 +17,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -88,6 +89,12 @@ struct ExtractOptions {
   // PLY and OBJ store none, and smoothing and decimation recompute them (figures:
   // docs/benchmarks.md, "Moved from headers and the README").
   bool vertex_normals = true;
+  // When set, extract_isosurface calls it once, with every slice [0, nz), as soon as it has
+  // read the volume for the last time: before the slabs' meshes are joined, when the mesh is
+  // held twice for a moment. A holder that needs the volume no more can release the slices
+  // (Volume::release_slices) so that the join does not hold it too. extract_layers and type
+  // merging never call it. The output does not depend on it.
+  std::function<void(std::int64_t begin, std::int64_t end)> slices_done = nullptr;
 };
 
 // Cost and memory (W × H = padded slice size, (nx + 2)(ny + 2) with close_borders):

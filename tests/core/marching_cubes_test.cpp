@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <numbers>
@@ -26,9 +27,9 @@ using test::sample_volume;
 using test::set_cube;
 using test::sphere_volume;
 
-constexpr ExtractOptions kOpen{.close_borders = false};
-constexpr ExtractOptions kClosed{.close_borders = true};
-constexpr ExtractOptions kClassic{.close_borders = true, .mode = ExtractOptions::Mode::classic};
+const ExtractOptions kOpen{.close_borders = false};
+const ExtractOptions kClosed{.close_borders = true};
+const ExtractOptions kClassic{.close_borders = true, .mode = ExtractOptions::Mode::classic};
 
 // ---- A slow, independent reference ----------------------------------------------------------
 //
@@ -730,6 +731,37 @@ TEST(MarchingCubes, WithoutVertexNormalsOnlyTheNormalsGo) {
         EXPECT_GT(with_stats.centroid_vertices, 0u);
       }
     }
+  }
+}
+
+// slices_done is said once, with every slice, after the last read: the callback wipes the
+// samples (every one outside), and the surface, normals included (read from the samples), is
+// still the one made from the whole volume, on one slab or several. A volume without a
+// surface says it too.
+TEST(MarchingCubes, SaysOnceWhenTheVolumeIsReadNoMore) {
+  const Volume volume = sphere_volume(48, 19.3, 23.6, 23.2, 23.9);
+  for (unsigned threads : {1u, 3u}) {
+    SCOPED_TRACE(threads);
+    ExtractOptions options = kClosed;
+    options.threads = threads;
+    const TriangleMesh kept = extract_isosurface(volume, 0.0f, options);
+    Volume wiped = volume;
+    int calls = 0;
+    options.slices_done = [&](std::int64_t begin, std::int64_t end) {
+      ++calls;
+      EXPECT_EQ(begin, 0);
+      EXPECT_EQ(end, wiped.size().nz);
+      std::fill(wiped.samples().begin(), wiped.samples().end(), -1.0f);
+    };
+    const TriangleMesh mesh = extract_isosurface(wiped, 0.0f, options);
+    EXPECT_EQ(calls, 1);
+    EXPECT_GT(mesh.triangles.size(), 0u);
+    EXPECT_EQ(mesh.triangles, kept.triangles);
+    EXPECT_EQ(mesh.positions, kept.positions);
+    EXPECT_EQ(mesh.normals, kept.normals);
+    calls = 0;
+    EXPECT_TRUE(extract_isosurface(wiped, 0.0f, options).triangles.empty());
+    EXPECT_EQ(calls, 1);
   }
 }
 

@@ -46,8 +46,8 @@ constexpr bool kSanitized = true;
 constexpr bool kSanitized = false;
 #endif
 
-constexpr ExtractOptions kOpen{.close_borders = false};
-constexpr ExtractOptions kClosed{.close_borders = true};
+const ExtractOptions kOpen{.close_borders = false};
+const ExtractOptions kClosed{.close_borders = true};
 
 struct Extracted {
   TriangleMesh mc;
@@ -287,7 +287,7 @@ TEST(TypeMerging, NoiseStaysWatertightAndManifold) {
 // Classic MC leaves holes on ambiguous faces, which a block's loop (its edges on the block's
 // faces) cannot see: type merging refuses it.
 TEST(TypeMerging, ClassicModeIsRefused) {
-  constexpr ExtractOptions kClassic{.close_borders = true, .mode = ExtractOptions::Mode::classic};
+  const ExtractOptions kClassic{.close_borders = true, .mode = ExtractOptions::Mode::classic};
   EXPECT_THROW(extract_type_merged(noise_volume(11, 10, 9, 1), 0.5f, kClassic),
                std::invalid_argument);
 }
