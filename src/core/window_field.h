@@ -4,7 +4,11 @@
 // only one bound, linear in v, so marching cubes at iso 0 on f places vertices where the
 // original data crosses lo or hi — the same positions as extracting v = lo or v = hi. When
 // `hi` is at or above the data's maximum the result equals extracting v ≥ lo directly.
-// Memory: one more volume of floats (the caller may drop the original afterwards).
+// Storage: int16 when the samples are int16, lo and hi whole numbers and every value of f fits
+// int16 (all CT: it needs a sample more than 32,767 from both bounds), else float. The values
+// are the same either way (f is a whole number then), and extractors read an int16 sample as
+// the float of the same integer (volume.h), so the surfaces are too. Memory: one more volume
+// of that storage (the caller may drop the original afterwards).
 #pragma once
 
 #include "core/volume.h"

@@ -159,10 +159,21 @@ TEST(VolumeStorage, ExtractionFromInt16EqualsExtractionFromFloat) {
     expect_same_mesh(extract_type_merged(as_float, iso, {}, merge),
                      extract_type_merged(as_int16, iso, {}, merge));
   }
-  // The window field reads either storage into the same floats.
+  // The window field reads either storage into the same values (kept as int16 from int16).
   const Volume field_f = window_field(as_float, 0.0f, 400.0f);
   const Volume field_i = window_field(as_int16, 0.0f, 400.0f);
-  EXPECT_EQ(field_f.samples(), field_i.samples());
+  EXPECT_TRUE(field_i.holds_int16());
+  Volume widened = field_i;
+  widened.to_float();
+  EXPECT_EQ(field_f.samples(), widened.samples());
+  {
+    MergeOptions merge;
+    merge.slab_layers = 8;
+    const TriangleMesh window_f = extract_type_merged(field_f, 0.0f, {}, merge);
+    ASSERT_FALSE(window_f.triangles.empty());
+    expect_same_mesh(window_f, extract_type_merged(field_i, 0.0f, {}, merge));
+    expect_same_mesh(extract_isosurface(field_f, 0.0f), extract_isosurface(field_i, 0.0f));
+  }
   EXPECT_EQ(window_cover(as_int16, 0.0f, 400.0f), window_cover(as_float, 0.0f, 400.0f));
 
   // The inner wall reads the field's samples too.
