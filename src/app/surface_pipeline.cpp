@@ -198,12 +198,15 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
     const float iso = window ? 0.0f : static_cast<float>(spec.lo);
     Details details;
     const FinishOptions& finish = options.finish;
-    // For a reduction: said before its collapses, unless the distance measurement reads the
-    // volume after it.
+    // Whether the extractor's own last read of the volume is this surface's: not for a window
+    // (it reads the field), --hollow, or type merging's distance measurement (marching cubes
+    // of the volume after it). Then the extractor says when: type merging slice by slice, a
+    // reduction before its collapses, marching cubes before joining its slabs.
+    const bool extractor_says = !window && last_read_in_extraction &&
+                                !(options.measure_distance && options.algorithm == "tm");
+    const auto say_all = [&](std::int64_t, std::int64_t) { reads_done(); };
     core::MergeOptions reduction;
-    if (!window && last_read_in_extraction && !options.measure_distance) {
-      reduction.slices_done = [&](std::int64_t, std::int64_t) { reads_done(); };
-    }
+    if (extractor_says) reduction.slices_done = say_all;
     if (options.algorithm == "tm") {
       core::MergeStats stats;
       if (finish.reduce_to_triangles > 0) {
@@ -236,8 +239,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       } else {
         core::MergeOptions merge;
         merge.epsilon_mm = finish.max_error_mm;  // 0: the default, half a voxel
-        if (readers != nullptr && !window && last_read_in_extraction &&
-            !options.measure_distance) {
+        if (readers != nullptr && extractor_says) {
           merge.slices_done = [readers](std::int64_t begin, std::int64_t end) {
             readers->slices_read(begin, end);
           };
@@ -263,9 +265,7 @@ SurfaceResult make_surface(const core::Volume& volume, const SurfaceSpec& spec,
       }
     } else {
       core::ExtractOptions freeing = extract;
-      if (!window && last_read_in_extraction) {
-        freeing.slices_done = [&](std::int64_t, std::int64_t) { reads_done(); };
-      }
+      if (extractor_says) freeing.slices_done = say_all;
       mesh = core::extract_isosurface(source, iso, freeing);
     }
     core::to_patient(mesh, volume.geometry());
